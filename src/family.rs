@@ -1,0 +1,236 @@
+//! Neighbor families in CSR form (built with a kiddo k-d tree), the β partial-volume factor
+//! (3.2) and pre-crack cuts.
+
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::prelude::*;
+
+use crate::scene::{CrackGeometry, FamilyRadius};
+
+/// Families of all nodes in compressed sparse rows: node i's neighbors are
+/// `neighbors[offsets[i]..offsets[i + 1]]`, with the reference bond length beside each.
+#[derive(Debug, Clone)]
+pub struct Families {
+    pub offsets: Vec<usize>,
+    pub neighbors: Vec<u32>,
+    pub lengths: Vec<f64>,
+}
+
+impl Families {
+    /// Families within `radius` (each node excluded from its own family), sorted by index.
+    pub fn build<const D: usize>(positions: &[[f64; D]], radius: f64) -> Self {
+        let mut rows: Vec<Vec<(u32, f64)>> = Vec::new();
+        if !positions.is_empty() {
+            let tree: ImmutableKdTree<f64, D> = ImmutableKdTree::new_from_slice(positions)
+                .expect("a k-d tree over finite lattice coordinates");
+            let r2 = radius * radius;
+            rows = positions
+                .par_iter()
+                .enumerate()
+                .map(|(i, x)| {
+                    let mut row: Vec<(u32, f64)> = tree
+                        .query(x)
+                        .within::<SquaredEuclidean<f64>>(r2)
+                        .unsorted()
+                        .execute()
+                        .into_iter()
+                        .filter(|n| n.item as usize != i)
+                        .map(|n| (n.item, n.distance.sqrt()))
+                        .collect();
+                    row.sort_unstable_by_key(|&(j, _)| j);
+                    row
+                })
+                .collect();
+        }
+        let mut offsets = Vec::with_capacity(positions.len() + 1);
+        offsets.push(0);
+        let total: usize = rows.iter().map(Vec::len).sum();
+        let mut neighbors = Vec::with_capacity(total);
+        let mut lengths = Vec::with_capacity(total);
+        for row in rows {
+            for (j, r) in row {
+                neighbors.push(j);
+                lengths.push(r);
+            }
+            offsets.push(neighbors.len());
+        }
+        Families {
+            offsets,
+            neighbors,
+            lengths,
+        }
+    }
+
+    pub fn node_count(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    pub fn bond_count(&self) -> usize {
+        self.neighbors.len()
+    }
+
+    pub fn range(&self, i: usize) -> std::ops::Range<usize> {
+        self.offsets[i]..self.offsets[i + 1]
+    }
+
+    /// Bytes held per directed bond by the family arrays (indices and lengths).
+    pub fn bytes_per_bond(&self) -> f64 {
+        let bytes = self.neighbors.len() * 4 + self.lengths.len() * 8 + self.offsets.len() * 8;
+        bytes as f64 / self.bond_count().max(1) as f64
+    }
+}
+
+/// Family search radius: δ plus a small tolerance, or δ + Δx/2.
+pub fn search_radius(kind: FamilyRadius, horizon: f64, spacing: f64) -> f64 {
+    match kind {
+        FamilyRadius::Horizon => horizon * (1.0 + 1e-9),
+        FamilyRadius::HorizonPlusHalfSpacing => (horizon + 0.5 * spacing) * (1.0 - 1e-12),
+    }
+}
+
+/// Volume-reduction factor β (3.2): 1 inside δ − Δx/2, linear to 0 at δ + Δx/2.
+#[inline(always)]
+pub fn partial_volume(r: f64, horizon: f64, spacing: f64) -> f64 {
+    ((horizon + 0.5 * spacing - r) / spacing).clamp(0.0, 1.0)
+}
+
+/// True if the bond from `a` to `b` crosses the pre-crack.
+pub fn crosses(crack: &CrackGeometry, a: &[f64], b: &[f64]) -> bool {
+    match crack {
+        CrackGeometry::Point(c) => (a[0] - c) * (b[0] - c) < 0.0,
+        CrackGeometry::Segment(p, q) => segments_cross([a[0], a[1]], [b[0], b[1]], *p, *q),
+        CrackGeometry::Patch {
+            origin,
+            edge_a,
+            edge_b,
+        } => segment_crosses_patch([a[0], a[1], a[2]], [b[0], b[1], b[2]], origin, edge_a, edge_b),
+    }
+}
+
+fn cross2(o: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+}
+
+/// Proper crossing test; a bond end lying exactly on the crack line counts as crossing when the
+/// other end is strictly on one side (so nodes placed on a crack line are cut from one side).
+fn segments_cross(a: [f64; 2], b: [f64; 2], p: [f64; 2], q: [f64; 2]) -> bool {
+    let d1 = cross2(p, q, a);
+    let d2 = cross2(p, q, b);
+    let d3 = cross2(a, b, p);
+    let d4 = cross2(a, b, q);
+    let straddles_crack = (d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0) || (d1 == 0.0) != (d2 == 0.0) && (d1 > 0.0 || d2 > 0.0);
+    straddles_crack && ((d3 > 0.0) != (d4 > 0.0) || d3 == 0.0 || d4 == 0.0)
+}
+
+fn segment_crosses_patch(
+    a: [f64; 3],
+    b: [f64; 3],
+    origin: &[f64; 3],
+    ea: &[f64; 3],
+    eb: &[f64; 3],
+) -> bool {
+    let n = [
+        ea[1] * eb[2] - ea[2] * eb[1],
+        ea[2] * eb[0] - ea[0] * eb[2],
+        ea[0] * eb[1] - ea[1] * eb[0],
+    ];
+    let side = |x: [f64; 3]| (0..3).map(|k| (x[k] - origin[k]) * n[k]).sum::<f64>();
+    let (sa, sb) = (side(a), side(b));
+    let straddles = (sa > 0.0 && sb < 0.0) || (sa < 0.0 && sb > 0.0) || (sa == 0.0) != (sb == 0.0) && (sa > 0.0 || sb > 0.0);
+    if !straddles {
+        return false;
+    }
+    let t = sa / (sa - sb);
+    let hit: Vec<f64> = (0..3).map(|k| a[k] + t * (b[k] - a[k]) - origin[k]).collect();
+    // Solve hit = u·ea + v·eb in the least-squares sense (ea, eb span the plane).
+    let dot = |x: &[f64], y: &[f64; 3]| (0..3).map(|k| x[k] * y[k]).sum::<f64>();
+    let (aa, ab, bb) = (dot(ea, ea), dot(ea, eb), dot(eb, eb));
+    let (ha, hb) = (dot(&hit, ea), dot(&hit, eb));
+    let det = aa * bb - ab * ab;
+    let u = (ha * bb - hb * ab) / det;
+    let v = (hb * aa - ha * ab) / det;
+    let tol = 1e-12;
+    (-tol..=1.0 + tol).contains(&u) && (-tol..=1.0 + tol).contains(&v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::Lattice;
+    use crate::scene::Solid;
+
+    fn family_size_with_self<const D: usize>(m: usize) -> usize {
+        let n = 2 * m + 3;
+        let solid = Solid::Box {
+            min: vec![0.0; D],
+            max: vec![n as f64; D],
+        };
+        let lattice = Lattice::<D>::build(&solid, 1.0, 0.0, 1);
+        let centre = [(m + 1) as f64 + 0.0; D];
+        let c = lattice
+            .positions
+            .iter()
+            .position(|p| p.iter().zip(&centre).all(|(a, b)| (a - b).abs() < 1e-12))
+            .unwrap();
+        let fam = Families::build(&lattice.positions, search_radius(FamilyRadius::Horizon, m as f64, 1.0));
+        fam.range(c).len() + 1
+    }
+
+    #[test]
+    fn neighborhood_counts_match_the_thesis() {
+        for m in [1, 3, 8, 33] {
+            assert_eq!(family_size_with_self::<1>(m), 2 * m + 1);
+        }
+        assert_eq!(family_size_with_self::<2>(8), 197);
+        assert_eq!(family_size_with_self::<2>(12), 441);
+        assert_eq!(family_size_with_self::<2>(24), 1793);
+        assert_eq!(family_size_with_self::<3>(6), 925);
+        assert_eq!(family_size_with_self::<3>(12), 7153);
+    }
+
+    #[test]
+    fn families_are_symmetric() {
+        let solid = Solid::Box {
+            min: vec![0.0; 2],
+            max: vec![10.0; 2],
+        };
+        let lattice = Lattice::<2>::build(&solid, 1.0, 0.3, 3);
+        let fam = Families::build(&lattice.positions, 3.0);
+        for i in 0..fam.node_count() {
+            for b in fam.range(i) {
+                let j = fam.neighbors[b] as usize;
+                let back = fam.range(j).find(|&k| fam.neighbors[k] as usize == i);
+                let k = back.expect("j's family contains i");
+                assert_eq!(fam.lengths[k], fam.lengths[b]);
+            }
+        }
+    }
+
+    #[test]
+    fn partial_volume_factor() {
+        assert_eq!(partial_volume(1.0, 3.0, 1.0), 1.0);
+        assert_eq!(partial_volume(2.5, 3.0, 1.0), 1.0);
+        assert!((partial_volume(3.0, 3.0, 1.0) - 0.5).abs() < 1e-15);
+        assert_eq!(partial_volume(3.5, 3.0, 1.0), 0.0);
+    }
+
+    #[test]
+    fn crack_crossing() {
+        let crack = CrackGeometry::Segment([0.0, 0.0], [1.0, 0.0]);
+        assert!(crosses(&crack, &[0.5, -0.1], &[0.5, 0.1]));
+        assert!(!crosses(&crack, &[1.5, -0.1], &[1.5, 0.1]));
+        assert!(!crosses(&crack, &[0.5, 0.1], &[0.7, 0.2]));
+        // A node on the crack line is cut from the upper side only.
+        assert!(crosses(&crack, &[0.5, 0.0], &[0.5, 0.1]));
+        assert!(!crosses(&crack, &[0.5, 0.0], &[0.5, -0.1]));
+        let patch = CrackGeometry::Patch {
+            origin: [0.0, 0.0, 0.0],
+            edge_a: [1.0, 0.0, 0.0],
+            edge_b: [0.0, 1.0, 0.0],
+        };
+        assert!(crosses(&patch, &[0.5, 0.5, -0.1], &[0.5, 0.5, 0.1]));
+        assert!(!crosses(&patch, &[1.5, 0.5, -0.1], &[1.5, 0.5, 0.1]));
+        let point = CrackGeometry::Point(0.5);
+        assert!(crosses(&point, &[0.0], &[1.0]));
+        assert!(!crosses(&point, &[0.6], &[1.0]));
+    }
+}

@@ -1,0 +1,13 @@
+//! Time integrators and stable-step estimates.
+
+pub mod verlet;
+
+/// Stable step of linearized bond-based PD (3.8): min_i √(2ρ / Σ_j ‖C(ξ_ij)‖ β V_j).
+pub fn stable_step(density: f64, stiffness_sums: &[f64]) -> f64 {
+    let max = stiffness_sums.iter().copied().fold(0.0, f64::max);
+    if max > 0.0 {
+        (2.0 * density / max).sqrt()
+    } else {
+        f64::INFINITY
+    }
+}

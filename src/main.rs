@@ -1,0 +1,315 @@
+//! The `peridyn` command line: list, check, record, run, bench.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use peridyn::record::{RecordTarget, RerunSink};
+use peridyn::runner::{self, RunSummary};
+use peridyn::scene::{Scene, builtin};
+use peridyn::{bench, sim};
+
+#[derive(Parser)]
+#[command(
+    name = "peridyn",
+    version,
+    about = "Watch and measure adaptive peridynamic simulations live",
+    long_about = "Watch and measure adaptive peridynamic simulations live.\n\n\
+                  With no arguments, records the default scene (kalthoff-winkler, variant small) \
+                  to kalthoff-winkler-small.rrd."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// List the built-in presets and their variants.
+    List,
+    /// Validate a preset and print its discretization (nodes, bonds, time step).
+    Check(SceneArgs),
+    /// Run a scene headless and save it as a Rerun recording (.rrd).
+    Record {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Output file (default: PRESET[-VARIANT].rrd).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        #[command(flatten)]
+        run: RunArgs,
+    },
+    /// Run a scene and stream it live to a Rerun viewer.
+    Run {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Stream to a running viewer (default URL rerun+http://127.0.0.1:9876/proxy).
+        #[arg(long, num_args = 0..=1, default_missing_value = "rerun+http://127.0.0.1:9876/proxy", conflicts_with_all = ["serve", "spawn"])]
+        connect: Option<String>,
+        /// Host a gRPC stream that viewers connect to (default 0.0.0.0:9876).
+        #[arg(long, num_args = 0..=1, default_missing_value = "0.0.0.0:9876", conflicts_with = "spawn")]
+        serve: Option<String>,
+        /// Start a local `rerun` viewer (needs `rerun` on PATH).
+        #[arg(long)]
+        spawn: bool,
+        /// Also save the stream to this .rrd file.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        #[command(flatten)]
+        run: RunArgs,
+    },
+    /// Throughput benchmark on the pmb-block-3d preset (single- and all-thread).
+    Bench {
+        /// Steps per measurement (default: the preset's 100).
+        #[arg(long)]
+        steps: Option<u64>,
+        /// Preset variant to measure, e.g. `small` for a quick look.
+        #[arg(long)]
+        variant: Option<String>,
+    },
+}
+
+#[derive(Args)]
+struct SceneArgs {
+    /// A built-in preset name (see `peridyn list`) or a path to a preset .toml file.
+    preset: String,
+    /// Preset variant, e.g. `small`.
+    #[arg(long)]
+    variant: Option<String>,
+}
+
+#[derive(Args)]
+struct RunArgs {
+    /// Log a frame every K steps (overrides the preset's output.every).
+    #[arg(long)]
+    every: Option<u64>,
+    /// Stop after this many steps.
+    #[arg(long)]
+    steps: Option<u64>,
+    /// No progress bar.
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+/// Exit codes: 0 success, 1 runtime failure (I/O, viewer), 2 bad input, 3 unstable run,
+/// 130 interrupted.
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let command = cli.command.unwrap_or_else(|| {
+        let (preset, variant) = builtin::DEFAULT;
+        Command::Record {
+            scene: SceneArgs {
+                preset: preset.into(),
+                variant: Some(variant.into()),
+            },
+            output: None,
+            run: RunArgs {
+                every: None,
+                steps: None,
+                quiet: false,
+            },
+        }
+    });
+    match execute(command) {
+        Ok(code) => code,
+        Err(Failure::BadInput(msg)) => {
+            eprintln!("error: {msg}");
+            ExitCode::from(2)
+        }
+        Err(Failure::Runtime(msg)) => {
+            eprintln!("error: {msg}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+enum Failure {
+    BadInput(String),
+    Runtime(String),
+}
+
+fn load(args: &SceneArgs) -> Result<Scene, Failure> {
+    Scene::load(&args.preset, args.variant.as_deref()).map_err(|e| Failure::BadInput(e.to_string()))
+}
+
+fn execute(command: Command) -> Result<ExitCode, Failure> {
+    match command {
+        Command::List => {
+            for name in builtin::names() {
+                let scene = Scene::load(name, None).map_err(|e| Failure::Runtime(e.to_string()))?;
+                let preset: peridyn::scene::Preset =
+                    toml::from_str(&scene.preset_text).map_err(|e| Failure::Runtime(e.to_string()))?;
+                let variants: Vec<&str> = preset.variants.keys().map(String::as_str).collect();
+                println!(
+                    "{name:<20} {}\n{:<20} variants: {}",
+                    scene.description,
+                    "",
+                    variants.join(", ")
+                );
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Check(args) => {
+            let scene = load(&args)?;
+            let sim = sim::build(&scene).map_err(|e| Failure::BadInput(e.to_string()))?;
+            let info = sim.info();
+            println!(
+                "{} ({}D): {} nodes, {} directed bonds, Δt = {:.4e} s (stable bound {:.4e} s), {} steps, a frame every {}",
+                scene.name,
+                info.dim,
+                info.nodes,
+                info.bonds,
+                info.dt,
+                info.stable_dt,
+                info.total_steps,
+                info.frame_every
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Record { scene, output, run } => {
+            let loaded = load(&scene)?;
+            let path = output.unwrap_or_else(|| default_output(&loaded));
+            let summary = simulate(&loaded, RecordTarget::File(path.clone()), &run)?;
+            println!("recording: {}", path.display());
+            println!("view it:   pip install 'rerun-sdk==0.36.*' && rerun {}", path.display());
+            Ok(exit_code(&summary))
+        }
+        Command::Run {
+            scene,
+            connect,
+            serve,
+            spawn,
+            output,
+            run,
+        } => {
+            let loaded = load(&scene)?;
+            let target = if let Some(url) = connect {
+                RecordTarget::Connect { url, file: output }
+            } else if let Some(addr) = serve {
+                RecordTarget::Serve { addr, file: output }
+            } else if spawn {
+                RecordTarget::Spawn { file: output }
+            } else {
+                RecordTarget::Connect {
+                    url: "rerun+http://127.0.0.1:9876/proxy".into(),
+                    file: output,
+                }
+            };
+            let summary = simulate(&loaded, target, &run)?;
+            Ok(exit_code(&summary))
+        }
+        Command::Bench { steps, variant } => {
+            let report = bench::run(variant.as_deref(), steps).map_err(Failure::Runtime)?;
+            println!("{report}");
+            Ok(ExitCode::SUCCESS)
+        }
+    }
+}
+
+fn default_output(scene: &Scene) -> PathBuf {
+    match &scene.variant {
+        Some(v) => PathBuf::from(format!("{}-{v}.rrd", scene.name)),
+        None => PathBuf::from(format!("{}.rrd", scene.name)),
+    }
+}
+
+fn exit_code(summary: &RunSummary) -> ExitCode {
+    if summary.error.is_some() {
+        ExitCode::from(3)
+    } else if summary.interrupted {
+        ExitCode::from(130)
+    } else {
+        ExitCode::SUCCESS
+    }
+}
+
+fn simulate(scene: &Scene, target: RecordTarget, args: &RunArgs) -> Result<RunSummary, Failure> {
+    let mut scene = scene.clone();
+    if let Some(k) = args.every {
+        if k == 0 {
+            return Err(Failure::BadInput("--every must be ≥ 1".into()));
+        }
+        scene.output_every = Some(k);
+    }
+    let mut sim = sim::build(&scene).map_err(|e| Failure::BadInput(e.to_string()))?;
+    let info = sim.info();
+    eprintln!(
+        "{}{}: {}D, {} nodes, {} bonds, Δt = {:.3e} s ({:.2}× stable), {} steps",
+        scene.name,
+        scene.variant.as_deref().map(|v| format!(" [{v}]")).unwrap_or_default(),
+        info.dim,
+        info.nodes,
+        info.bonds,
+        info.dt,
+        info.dt / info.stable_dt,
+        args.steps.unwrap_or(info.total_steps).min(info.total_steps)
+    );
+    let mut sink = RerunSink::start(target, &scene, &info).map_err(Failure::Runtime)?;
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        // A second Ctrl-C while finishing exits at once.
+        let _ = ctrlc::set_handler(move || {
+            if stop.swap(true, Ordering::Relaxed) {
+                std::process::exit(130);
+            }
+        });
+    }
+    let total = args.steps.unwrap_or(info.total_steps).min(info.total_steps);
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(total)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} steps  {per_sec}  eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut progress = |n: u64, _total: u64| {
+        if n % 16 == 0 || n == total {
+            bar.set_position(n);
+        }
+    };
+    let summary = runner::run(sim.as_mut(), &mut sink, &stop, Some(total), &mut progress);
+    bar.finish_and_clear();
+    let written = sink.finish().map_err(Failure::Runtime)?;
+    print_summary(&summary, written);
+    if let Some(e) = &summary.error {
+        eprintln!("error: {e}");
+    }
+    if summary.interrupted {
+        eprintln!("interrupted: the recording holds every frame logged before the signal");
+    }
+    Ok(summary)
+}
+
+fn print_summary(s: &RunSummary, frames_written: u64) {
+    println!(
+        "steps: {}  frames: {} ({} written)  wall: {:.2} s  steps/s: {:.1}  bond evaluations/s: {:.3e}  frame share: {:.1} %",
+        s.steps,
+        s.frames,
+        frames_written,
+        s.wall_seconds,
+        s.steps_per_second(),
+        s.bond_evaluations_per_second(),
+        100.0 * s.frame_seconds / s.wall_seconds.max(1e-12)
+    );
+    println!("broken bonds: {}", s.broken_bonds);
+    if let Some(f) = &s.last_frame {
+        for key in ["energy/kinetic", "energy/strain", "energy/total"] {
+            if let Some(v) = f.scalar(key) {
+                println!("{key}: {v:.6e} J");
+            }
+        }
+    }
+    for (name, angle) in &s.crack_angles {
+        match angle {
+            Some(a) => println!("crack angle {name}: {a:.1}°"),
+            None => println!("crack angle {name}: no crack found"),
+        }
+    }
+}

@@ -1,0 +1,3 @@
+//! Constitutive laws, each independent of the discretization and the time integrator.
+
+pub mod pmb;

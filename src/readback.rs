@@ -1,0 +1,100 @@
+//! Reads a `.rrd` recording back (with the Rerun SDK's decoder): per entity, the steps logged,
+//! the number of points at each step, the raw per-node values and the text documents.
+
+use std::collections::BTreeMap;
+use std::io::BufReader;
+use std::path::Path;
+
+use rerun::external::re_log_encoding::DecoderApp;
+use rerun::log::{Chunk, LogMsg};
+use rerun::{ComponentIdentifier, StoreKind, TimelineName};
+
+/// What one entity holds.
+#[derive(Debug, Default, Clone)]
+pub struct EntityContent {
+    /// step → number of points (2D or 3D positions) logged at that step.
+    pub points: BTreeMap<i64, usize>,
+    /// step → raw per-node values (the component named after the field).
+    pub values: BTreeMap<i64, Vec<f32>>,
+    /// step → scalar value.
+    pub scalars: BTreeMap<i64, f64>,
+    pub texts: Vec<String>,
+}
+
+#[derive(Debug, Default, Clone)]
+pub struct Recording {
+    pub entities: BTreeMap<String, EntityContent>,
+}
+
+impl Recording {
+    pub fn entity(&self, path: &str) -> Option<&EntityContent> {
+        self.entities.get(path)
+    }
+}
+
+/// Decodes every chunk of a recording. A file cut short (no footer, truncated last message)
+/// still yields everything before the cut.
+pub fn read(path: &Path) -> Result<Recording, String> {
+    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let decoder = DecoderApp::decode_eager(BufReader::new(file))
+        .map_err(|e| format!("{}: not a Rerun recording: {e}", path.display()))?;
+    let step = TimelineName::from("step");
+    let pos2: ComponentIdentifier = rerun::Points2D::descriptor_positions().component;
+    let pos3: ComponentIdentifier = rerun::Points3D::descriptor_positions().component;
+    let text: ComponentIdentifier = rerun::TextDocument::descriptor_text().component;
+    let log_text: ComponentIdentifier = rerun::TextLog::descriptor_text().component;
+    let scalar: ComponentIdentifier = rerun::Scalars::descriptor_scalars().component;
+    let mut out = Recording::default();
+    for msg in decoder {
+        let msg = msg.map_err(|e| format!("{}: {e}", path.display()))?;
+        let LogMsg::ArrowMsg(store, arrow) = &msg else {
+            continue;
+        };
+        if store.kind() != StoreKind::Recording {
+            continue;
+        }
+        let chunk = Chunk::from_arrow_msg(arrow).map_err(|e| e.to_string())?;
+        let name = chunk.entity_path().to_string();
+        let entry = out.entities.entry(name.clone()).or_default();
+        let field = name.rsplit('/').next().unwrap_or_default().to_string();
+        let field_id = ComponentIdentifier::try_new(field.as_str()).ok();
+        for id in chunk.components_identifiers() {
+            if id == pos2 {
+                for ((t, _), p) in chunk
+                    .iter_component_indices(step, id)
+                    .zip(chunk.iter_slices::<[f32; 2]>(id))
+                {
+                    entry.points.insert(t.as_i64(), p.len());
+                }
+            } else if id == pos3 {
+                for ((t, _), p) in chunk
+                    .iter_component_indices(step, id)
+                    .zip(chunk.iter_slices::<[f32; 3]>(id))
+                {
+                    entry.points.insert(t.as_i64(), p.len());
+                }
+            } else if id == text || id == log_text {
+                for texts in chunk.iter_slices::<String>(id) {
+                    entry.texts.extend(texts.iter().map(|t| t.as_str().to_string()));
+                }
+            } else if id == scalar {
+                for ((t, _), v) in chunk
+                    .iter_component_indices(step, id)
+                    .zip(chunk.iter_slices::<f64>(id))
+                {
+                    if let Some(v) = v.first() {
+                        entry.scalars.insert(t.as_i64(), *v);
+                    }
+                }
+            } else if Some(id) == field_id {
+                for ((t, _), v) in chunk
+                    .iter_component_indices(step, id)
+                    .zip(chunk.iter_slices::<f32>(id))
+                {
+                    entry.values.insert(t.as_i64(), v.to_vec());
+                }
+            }
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,312 @@
+//! Rerun sink: maps `Frame`s to archetypes under a stable entity layout, on its own thread
+//! behind a bounded channel so logging never runs inside the solver's step.
+//!
+//! Layout: `scene/preset` (the preset text), `nodes/<field>` (points at current positions,
+//! colored by the field over a fixed range, carrying the raw per-node values as `<field>`),
+//! `metrics/<name>` (scalar series), `log/events` (warnings, the reason a run stopped).
+//! Time lines: `step` (sequence) and `sim_time` (duration).
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use crossbeam_channel::{Receiver, Sender, bounded};
+use rerun::external::arrow::array::{ArrayRef, Float32Array};
+use rerun::{AsComponents, ComponentIdentifier, RecordingStream, RecordingStreamBuilder};
+
+use crate::frame::Frame;
+use crate::runner::FrameSink;
+use crate::scene::Scene;
+use crate::sim::SimInfo;
+
+/// Where a recording goes.
+#[derive(Debug, Clone)]
+pub enum RecordTarget {
+    File(PathBuf),
+    /// Stream to a running viewer; optionally also save to a file.
+    Connect { url: String, file: Option<PathBuf> },
+    /// Host a gRPC server viewers connect to, at `addr` = "IP:PORT".
+    Serve { addr: String, file: Option<PathBuf> },
+    /// Start a local viewer (needs `rerun` on PATH).
+    Spawn { file: Option<PathBuf> },
+}
+
+enum Message {
+    Frame(Box<Frame>),
+    Text(String, String),
+}
+
+/// Frames in flight between the solver and the logging thread: the solver waits (instead of
+/// buffering without bound) when the sink falls behind.
+const CHANNEL_CAPACITY: usize = 4;
+
+pub struct RerunSink {
+    sender: Option<Sender<Message>>,
+    worker: Option<JoinHandle<Result<u64, String>>>,
+}
+
+impl RerunSink {
+    pub fn start(target: RecordTarget, scene: &Scene, info: &SimInfo) -> Result<Self, String> {
+        let stream = open_stream(&target, scene)?;
+        log_scene(&stream, scene, info).map_err(|e| format!("cannot write to the recording: {e}"))?;
+        let (sender, receiver) = bounded(CHANNEL_CAPACITY);
+        let radius = (0.5 * scene.spacing) as f32;
+        let worker = std::thread::Builder::new()
+            .name("rerun-sink".into())
+            .spawn(move || log_loop(stream, receiver, radius))
+            .map_err(|e| format!("cannot start the logging thread: {e}"))?;
+        Ok(RerunSink {
+            sender: Some(sender),
+            worker: Some(worker),
+        })
+    }
+
+    /// Logs everything still queued, closes the recording (writing the file's footer) and
+    /// returns the number of frames written.
+    pub fn finish(mut self) -> Result<u64, String> {
+        self.close()
+    }
+
+    fn close(&mut self) -> Result<u64, String> {
+        drop(self.sender.take());
+        match self.worker.take() {
+            Some(handle) => handle
+                .join()
+                .map_err(|_| "the logging thread panicked".to_string())?,
+            None => Ok(0),
+        }
+    }
+}
+
+impl Drop for RerunSink {
+    fn drop(&mut self) {
+        let _ = self.close();
+    }
+}
+
+impl FrameSink for RerunSink {
+    fn send(&mut self, frame: Frame) {
+        if let Some(s) = &self.sender {
+            let _ = s.send(Message::Frame(Box::new(frame)));
+        }
+    }
+
+    fn message(&mut self, level: &str, text: &str) {
+        if let Some(s) = &self.sender {
+            let _ = s.send(Message::Text(level.into(), text.into()));
+        }
+    }
+}
+
+fn recording_id(scene: &Scene) -> String {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_nanos())
+        .unwrap_or(0);
+    format!(
+        "{}-{}-{nanos:x}",
+        scene.name,
+        scene.variant.as_deref().unwrap_or("base")
+    )
+}
+
+fn open_stream(target: &RecordTarget, scene: &Scene) -> Result<RecordingStream, String> {
+    use rerun::sink::{FileSink, GrpcSink};
+    let builder = || {
+        RecordingStreamBuilder::new("peridyn")
+            .recording_id(recording_id(scene))
+            .recording_name(scene.name.clone())
+            .send_properties(true)
+            .enabled(true)
+    };
+    let file_sink = |path: &PathBuf| {
+        FileSink::new(path.clone()).map_err(|e| format!("cannot write {}: {e}", path.display()))
+    };
+    let result = match target {
+        RecordTarget::File(path) => builder().set_sinks((file_sink(path)?,)),
+        RecordTarget::Connect { url, file } => {
+            check_reachable(url)?;
+            let uri = url
+                .parse::<rerun::external::re_uri::ProxyUri>()
+                .map_err(|e| format!("bad viewer URL `{url}`: {e} (expected rerun+http://HOST:PORT/proxy)"))?;
+            match file {
+                Some(path) => builder().set_sinks((file_sink(path)?, GrpcSink::new(uri))),
+                None => builder().set_sinks((GrpcSink::new(uri),)),
+            }
+        }
+        RecordTarget::Serve { addr, file } => {
+            let (ip, port) = split_addr(addr)?;
+            let server = rerun::grpc_server::GrpcServerSink::new(
+                &ip,
+                port,
+                rerun::ServerOptions::default(),
+            )
+            .map_err(|e| format!("bad address `{addr}`: {e}"))?;
+            eprintln!(
+                "serving: connect a viewer with `rerun --connect rerun+http://127.0.0.1:{port}/proxy` (or this machine's address)"
+            );
+            match file {
+                Some(path) => builder().set_sinks((file_sink(path)?, server)),
+                None => builder().set_sinks((server,)),
+            }
+        }
+        RecordTarget::Spawn { file } => {
+            let stream = builder()
+                .spawn()
+                .map_err(|e| format!("cannot start a viewer: {e} (install it with `pip install 'rerun-sdk==0.36.*'`)"))?;
+            if let Some(path) = file {
+                let url = rerun::DEFAULT_CONNECT_URL
+                    .parse::<rerun::external::re_uri::ProxyUri>()
+                    .map_err(|e| e.to_string())?;
+                stream.set_sinks((file_sink(path)?, GrpcSink::new(url)));
+            }
+            Ok(stream)
+        }
+    };
+    result.map_err(|e| format!("cannot open the recording: {e}"))
+}
+
+fn split_addr(addr: &str) -> Result<(String, u16), String> {
+    let (ip, port) = addr
+        .rsplit_once(':')
+        .ok_or_else(|| format!("bad address `{addr}`: expected IP:PORT, e.g. 0.0.0.0:9876"))?;
+    let port = port
+        .parse()
+        .map_err(|_| format!("bad port in `{addr}`: expected a number 1–65535"))?;
+    Ok((ip.to_string(), port))
+}
+
+/// The SDK does not fail on an unreachable viewer (it retries and eventually blocks), so test
+/// the address first and give a clear error.
+fn check_reachable(url: &str) -> Result<(), String> {
+    use std::net::ToSocketAddrs;
+    let host_port = url
+        .split("://")
+        .nth(1)
+        .and_then(|rest| rest.split('/').next())
+        .ok_or_else(|| format!("bad viewer URL `{url}` (expected rerun+http://HOST:PORT/proxy)"))?;
+    let addrs: Vec<_> = host_port
+        .to_socket_addrs()
+        .map_err(|e| format!("cannot resolve viewer address `{host_port}`: {e}"))?
+        .collect();
+    for addr in &addrs {
+        if std::net::TcpStream::connect_timeout(addr, Duration::from_millis(1500)).is_ok() {
+            return Ok(());
+        }
+    }
+    Err(format!(
+        "no Rerun viewer is listening at {url}; start one with `rerun` (pip install 'rerun-sdk==0.36.*'), or use --spawn, --serve or `peridyn record`"
+    ))
+}
+
+fn log_scene(stream: &RecordingStream, scene: &Scene, info: &SimInfo) -> rerun::RecordingStreamResult<()> {
+    let header = format!(
+        "# {}{}\n\nsource: `{}`; {}D, {} nodes, {} directed bonds, Δt = {:.4e} s (stable bound {:.4e} s), {} steps.\n\n```toml\n{}\n```\n",
+        scene.name,
+        scene.variant.as_deref().map(|v| format!(" — variant `{v}`")).unwrap_or_default(),
+        scene.source,
+        info.dim,
+        info.nodes,
+        info.bonds,
+        info.dt,
+        info.stable_dt,
+        info.total_steps,
+        scene.preset_text
+    );
+    stream.log_static("scene/preset", &rerun::TextDocument::from_markdown(header))
+}
+
+fn log_loop(stream: RecordingStream, receiver: Receiver<Message>, radius: f32) -> Result<u64, String> {
+    let mut frames = 0;
+    let mut result = Ok(());
+    for message in receiver {
+        let logged = match message {
+            Message::Frame(frame) => {
+                frames += 1;
+                log_frame(&stream, &frame, radius)
+            }
+            Message::Text(level, text) => stream.log(
+                "log/events",
+                &rerun::TextLog::new(text).with_level(match level.as_str() {
+                    "error" => rerun::TextLogLevel::ERROR,
+                    "warn" => rerun::TextLogLevel::WARN,
+                    _ => rerun::TextLogLevel::INFO,
+                }),
+            ),
+        };
+        if let Err(e) = logged {
+            result = Err(format!("logging failed: {e}"));
+        }
+    }
+    let _ = stream.flush_with_timeout(Duration::from_secs(30));
+    drop(stream);
+    result.map(|_| frames)
+}
+
+fn log_frame(stream: &RecordingStream, frame: &Frame, radius: f32) -> rerun::RecordingStreamResult<()> {
+    stream.set_time_sequence("step", frame.step as i64);
+    stream.set_duration_secs("sim_time", frame.time);
+    let dim = frame.dim;
+    for field in &frame.fields {
+        let colors: Vec<rerun::Color> = field
+            .values
+            .iter()
+            .map(|&v| colormap((v - field.range.0) / (field.range.1 - field.range.0)))
+            .collect();
+        let raw: ArrayRef = Arc::new(Float32Array::from_iter_values(
+            field.values.iter().map(|&v| v as f32),
+        ));
+        let values = rerun::AnyValues::default()
+            .with_component_from_data(ComponentIdentifier::try_new(field.name).unwrap_or("value".into()), raw);
+        let path = format!("nodes/{}", field.name);
+        let points: Box<dyn AsComponents> = if dim == 3 {
+            Box::new(
+                rerun::Points3D::new(
+                    frame
+                        .positions
+                        .chunks_exact(3)
+                        .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]),
+                )
+                .with_colors(colors)
+                .with_radii([radius]),
+            )
+        } else {
+            Box::new(
+                rerun::Points2D::new(frame.positions.chunks_exact(dim).map(|p| {
+                    [p[0] as f32, if dim == 2 { p[1] as f32 } else { 0.0 }]
+                }))
+                .with_colors(colors)
+                .with_radii([radius]),
+            )
+        };
+        stream.log(path, &[points.as_ref(), &values as &dyn AsComponents])?;
+    }
+    for (name, value) in &frame.scalars {
+        stream.log(format!("metrics/{name}"), &rerun::Scalars::single(*value))?;
+    }
+    Ok(())
+}
+
+/// Viridis, sampled at nine points and interpolated linearly; t is clamped to [0, 1].
+pub fn colormap(t: f64) -> rerun::Color {
+    const VIRIDIS: [[f64; 3]; 9] = [
+        [68.0, 1.0, 84.0],
+        [71.0, 44.0, 122.0],
+        [59.0, 81.0, 139.0],
+        [44.0, 113.0, 142.0],
+        [33.0, 144.0, 141.0],
+        [39.0, 173.0, 129.0],
+        [92.0, 200.0, 99.0],
+        [170.0, 220.0, 50.0],
+        [253.0, 231.0, 37.0],
+    ];
+    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 };
+    let x = t * 8.0;
+    let i = (x.floor() as usize).min(7);
+    let f = x - i as f64;
+    let c: Vec<u8> = (0..3)
+        .map(|k| (VIRIDIS[i][k] * (1.0 - f) + VIRIDIS[i + 1][k] * f).round() as u8)
+        .collect();
+    rerun::Color::from_rgb(c[0], c[1], c[2])
+}

@@ -1,0 +1,382 @@
+//! Preset → Scene: range checks with the field's name, units to SI, derived material constants.
+
+use super::error::{ErrorContext, SceneError};
+use super::geometry::{Point, si};
+use super::schema::{BoundaryLayer, Precrack, Preset, VelocityField};
+use super::*;
+use crate::model::pmb;
+
+pub(super) fn validate(
+    p: &Preset,
+    ctx: &ErrorContext,
+    text: &str,
+    variant: Option<&str>,
+) -> Result<Scene, SceneError> {
+    let dim = p.dimension;
+    if !(1..=3).contains(&dim) {
+        return Err(ctx.error("dimension", format!("must be 1, 2 or 3, got {dim}")));
+    }
+    let solid = p
+        .geometry
+        .to_solid(dim, "geometry")
+        .map_err(|m| ctx.from_path_message(&m))?;
+
+    let d = &p.discretization;
+    let spacing = positive(ctx, "discretization.spacing", d.spacing.si())?;
+    let horizon = match (d.horizon_factor, d.horizon) {
+        (Some(m), None) => positive(ctx, "discretization.horizon_factor", m)? * spacing,
+        (None, Some(h)) => positive(ctx, "discretization.horizon", h.si())?,
+        _ => {
+            return Err(ctx.error(
+                "discretization.horizon_factor",
+                "give exactly one of `horizon_factor` (m = δ/Δx) and `horizon` (δ)",
+            ));
+        }
+    };
+    if !(0.0..0.5).contains(&d.perturbation) {
+        return Err(ctx.error(
+            "discretization.perturbation",
+            format!(
+                "must be in [0, 0.5) (a fraction of the spacing), got {}",
+                d.perturbation
+            ),
+        ));
+    }
+    let (lo, hi) = solid.bounds();
+    let nodes_estimate: f64 = lo
+        .iter()
+        .zip(&hi)
+        .map(|(a, b)| (b - a) / spacing + 1.0)
+        .product();
+    if nodes_estimate > 5e7 {
+        return Err(ctx.error(
+            "discretization.spacing",
+            format!("gives about {nodes_estimate:.3e} lattice nodes; the limit is 5e7"),
+        ));
+    }
+
+    let material = material(p, ctx, dim, horizon)?;
+    let precracks = p
+        .precracks
+        .iter()
+        .enumerate()
+        .map(|(i, c)| precrack(c, dim, &format!("precracks[{i}]")))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|m| ctx.from_path_message(&m))?;
+    let boundary = p
+        .boundary
+        .iter()
+        .enumerate()
+        .map(|(i, b)| boundary_layer(b, dim, &format!("boundary[{i}]")))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|m| ctx.from_path_message(&m))?;
+    let initial_velocity = p
+        .initial
+        .velocity
+        .iter()
+        .enumerate()
+        .map(|(i, v)| velocity_field(v, dim, &format!("initial.velocity[{i}]")))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|m| ctx.from_path_message(&m))?;
+    let time = time_spec(p, ctx)?;
+    if p.output.every == Some(0) {
+        return Err(ctx.error("output.every", "must be ≥ 1 (steps between frames)"));
+    }
+    let crack_angles = p
+        .metrics
+        .crack_angle
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let path = format!("metrics.crack_angle[{i}]");
+            let tip = point(&c.tip, dim, &format!("{path}.tip"))?;
+            let direction = point(&c.direction, dim, &format!("{path}.direction"))?;
+            if direction.iter().all(|v| *v == 0.0) {
+                return Err(format!("{path}.direction: must not be zero"));
+            }
+            if !(0.0..=1.0).contains(&c.threshold) {
+                return Err(format!("{path}.threshold: must be in [0, 1]"));
+            }
+            Ok(CrackAngleSpec {
+                name: c.name.clone(),
+                tip,
+                direction,
+                threshold: c.threshold,
+                region: c.region.to_solid(dim, &format!("{path}.region"))?,
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|m| ctx.from_path_message(&m))?;
+
+    Ok(Scene {
+        name: p.name.clone(),
+        description: p.description.clone(),
+        variant: variant.map(str::to_string),
+        source: ctx.file.to_string(),
+        preset_text: text.to_string(),
+        dim,
+        solid,
+        spacing,
+        horizon,
+        perturbation: d.perturbation,
+        seed: d.seed,
+        family_radius: d.family_radius,
+        volume_correction: d.volume_correction,
+        material,
+        precracks,
+        boundary,
+        initial_velocity,
+        time,
+        output_every: p.output.every,
+        crack_angles,
+    })
+}
+
+fn positive(ctx: &ErrorContext, field: &str, v: f64) -> Result<f64, SceneError> {
+    if v > 0.0 && v.is_finite() {
+        Ok(v)
+    } else {
+        Err(ctx.error(field, format!("must be a finite number > 0, got {v}")))
+    }
+}
+
+fn material(
+    p: &Preset,
+    ctx: &ErrorContext,
+    dim: usize,
+    horizon: f64,
+) -> Result<MaterialSpec, SceneError> {
+    let m = &p.material;
+    let density = positive(ctx, "material.density", m.density.si())?;
+    let youngs_modulus = m
+        .youngs_modulus
+        .map(|e| positive(ctx, "material.youngs_modulus", e.si()))
+        .transpose()?;
+    let micromodulus = match (m.micromodulus, youngs_modulus) {
+        (Some(c), _) => positive(ctx, "material.micromodulus", c.si())?,
+        (None, Some(e)) => pmb::micromodulus(e, horizon, dim, m.plane, m.influence),
+        (None, None) => {
+            return Err(ctx.error(
+                "material.youngs_modulus",
+                "give `youngs_modulus` (E) or `micromodulus` (c)",
+            ));
+        }
+    };
+    let critical_stretch = match (m.critical_stretch, m.fracture_energy) {
+        (Some(s0), _) => Some(positive(ctx, "material.critical_stretch", s0)?),
+        (None, Some(g0)) => {
+            let g0 = positive(ctx, "material.fracture_energy", g0.si())?;
+            Some(pmb::critical_stretch(
+                g0,
+                micromodulus,
+                horizon,
+                dim,
+                m.influence,
+            ))
+        }
+        (None, None) => None,
+    };
+    Ok(MaterialSpec {
+        density,
+        micromodulus,
+        critical_stretch,
+        influence: m.influence,
+        plane: m.plane,
+        youngs_modulus,
+    })
+}
+
+fn point(p: &Point, dim: usize, path: &str) -> Result<Vec<f64>, String> {
+    if p.len() != dim {
+        return Err(format!(
+            "{path}: has {} components, the scene is {dim}-dimensional",
+            p.len()
+        ));
+    }
+    Ok(si(p))
+}
+
+fn fixed<const N: usize>(p: &Point, dim: usize, path: &str) -> Result<[f64; N], String> {
+    let v = point(p, dim, path)?;
+    let mut out = [0.0; N];
+    out.copy_from_slice(&v);
+    Ok(out)
+}
+
+fn precrack(c: &Precrack, dim: usize, path: &str) -> Result<CrackGeometry, String> {
+    let wrong = |kind: &str, needs: usize| {
+        Err(format!(
+            "{path}: a `{kind}` pre-crack needs a {needs}D scene, this one is {dim}D"
+        ))
+    };
+    match c {
+        Precrack::Point { at } if dim == 1 => Ok(CrackGeometry::Point(at.si())),
+        Precrack::Point { .. } => wrong("point", 1),
+        Precrack::Segment { from, to } if dim == 2 => Ok(CrackGeometry::Segment(
+            fixed(from, dim, &format!("{path}.segment.from"))?,
+            fixed(to, dim, &format!("{path}.segment.to"))?,
+        )),
+        Precrack::Segment { .. } => wrong("segment", 2),
+        Precrack::Patch {
+            origin,
+            edge_a,
+            edge_b,
+        } if dim == 3 => Ok(CrackGeometry::Patch {
+            origin: fixed(origin, dim, &format!("{path}.patch.origin"))?,
+            edge_a: fixed(edge_a, dim, &format!("{path}.patch.edge_a"))?,
+            edge_b: fixed(edge_b, dim, &format!("{path}.patch.edge_b"))?,
+        }),
+        Precrack::Patch { .. } => wrong("patch", 3),
+    }
+}
+
+pub(crate) fn axis_index(name: &str, dim: usize, path: &str) -> Result<usize, String> {
+    let i = match name {
+        "x" => 0,
+        "y" => 1,
+        "z" => 2,
+        _ => return Err(format!("{path}: must be \"x\", \"y\" or \"z\", got \"{name}\"")),
+    };
+    if i >= dim {
+        return Err(format!("{path}: axis \"{name}\" does not exist in {dim}D"));
+    }
+    Ok(i)
+}
+
+fn boundary_layer(b: &BoundaryLayer, dim: usize, path: &str) -> Result<BoundarySpec, String> {
+    let (condition, value) = match (&b.velocity, &b.displacement, &b.body_force) {
+        (Some(v), None, None) => (Condition::Velocity, point(v, dim, &format!("{path}.velocity"))?),
+        (None, Some(u), None) => (
+            Condition::Displacement,
+            point(u, dim, &format!("{path}.displacement"))?,
+        ),
+        (None, None, Some(f)) => (
+            Condition::BodyForce,
+            point(f, dim, &format!("{path}.body_force"))?,
+        ),
+        _ => {
+            return Err(format!(
+                "{path}.velocity: give exactly one of `velocity`, `displacement`, `body_force`"
+            ));
+        }
+    };
+    let axes = match &b.axes {
+        None => (0..dim).collect(),
+        Some(s) => s
+            .chars()
+            .map(|c| axis_index(&c.to_string(), dim, &format!("{path}.axes")))
+            .collect::<Result<Vec<_>, _>>()?,
+    };
+    let face = match (&b.face, b.thickness) {
+        (Some(f), Some(t)) => {
+            let (axis, side) = f.split_at(1.min(f.len()));
+            let upper = match side {
+                "+" => true,
+                "-" => false,
+                _ => {
+                    return Err(format!(
+                        "{path}.face: must be like \"x-\" or \"y+\", got \"{f}\""
+                    ));
+                }
+            };
+            if t.si() <= 0.0 {
+                return Err(format!("{path}.thickness: must be > 0, got {}", t.si()));
+            }
+            Some((axis_index(axis, dim, &format!("{path}.face"))?, upper, t.si()))
+        }
+        (None, None) => None,
+        (Some(_), None) => return Err(format!("{path}.thickness: a `face` needs a `thickness`")),
+        (None, Some(_)) => return Err(format!("{path}.face: a `thickness` needs a `face`")),
+    };
+    let region = b
+        .region
+        .as_ref()
+        .map(|r| r.to_solid(dim, &format!("{path}.region")))
+        .transpose()?;
+    if region.is_none() && face.is_none() {
+        return Err(format!("{path}.region: give a `region`, a `face` + `thickness`, or both"));
+    }
+    Ok(BoundarySpec {
+        name: if b.name.is_empty() {
+            path.to_string()
+        } else {
+            b.name.clone()
+        },
+        region,
+        face,
+        condition,
+        value,
+        axes,
+    })
+}
+
+fn velocity_field(v: &VelocityField, dim: usize, path: &str) -> Result<InitialVelocity, String> {
+    Ok(match v {
+        VelocityField::Uniform { value } => {
+            InitialVelocity::Uniform(point(value, dim, &format!("{path}.uniform.value"))?)
+        }
+        VelocityField::Ramp {
+            component,
+            axis,
+            from,
+            to,
+        } => InitialVelocity::Ramp {
+            component: axis_index(component, dim, &format!("{path}.ramp.component"))?,
+            axis: axis_index(axis, dim, &format!("{path}.ramp.axis"))?,
+            from: from.si(),
+            to: to.si(),
+        },
+        VelocityField::Sine {
+            component,
+            axis,
+            amplitude,
+            modes,
+        } => InitialVelocity::Sine {
+            component: axis_index(component, dim, &format!("{path}.sine.component"))?,
+            axis: axis_index(axis, dim, &format!("{path}.sine.axis"))?,
+            amplitude: amplitude.si(),
+            modes: *modes,
+        },
+    })
+}
+
+fn time_spec(p: &Preset, ctx: &ErrorContext) -> Result<TimeSpec, SceneError> {
+    let t = &p.time;
+    let step = match (t.dt, t.dt_factor) {
+        (Some(dt), None) => StepSize::Absolute(positive(ctx, "time.dt", dt.si())?),
+        (None, Some(f)) => StepSize::FractionOfStable(positive(ctx, "time.dt_factor", f)?),
+        _ => {
+            return Err(ctx.error(
+                "time.dt",
+                "give exactly one of `dt` (seconds) and `dt_factor` (fraction of the stable bound)",
+            ));
+        }
+    };
+    if let StepSize::FractionOfStable(f) = step
+        && f > 1.0
+        && !t.allow_unstable
+    {
+        return Err(ctx.error(
+            "time.dt_factor",
+            format!(
+                "{f} is above the stable bound (3.8); use a value ≤ 1 or set time.allow_unstable = true"
+            ),
+        ));
+    }
+    let duration = match (t.end, t.steps) {
+        (Some(end), None) => Duration::End(positive(ctx, "time.end", end.si())?),
+        (None, Some(n)) if n > 0 => Duration::Steps(n),
+        (None, Some(_)) => return Err(ctx.error("time.steps", "must be ≥ 1")),
+        _ => {
+            return Err(ctx.error(
+                "time.end",
+                "give exactly one of `end` (seconds) and `steps`",
+            ));
+        }
+    };
+    Ok(TimeSpec {
+        step,
+        duration,
+        allow_unstable: t.allow_unstable,
+    })
+}

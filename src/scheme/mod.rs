@@ -1,0 +1,3 @@
+//! Spatial discretizations as operators.
+
+pub mod standard;

@@ -1,0 +1,559 @@
+//! The stepping simulation: owns the state, runs `step()` as named, timed stages and emits
+//! plain-data `Frame`s. It knows nothing of viewers or user interfaces.
+
+use std::sync::atomic::{AtomicU8, Ordering::Relaxed};
+use std::time::{Duration as WallDuration, Instant};
+
+use crate::family::{self, Families};
+use crate::frame::{Frame, NodeField};
+use crate::grid::Lattice;
+use crate::integrate::{self, verlet};
+use crate::metrics;
+use crate::model::pmb::PmbLaw;
+use crate::scene::error::locate_field;
+use crate::scene::{Condition, Duration, InitialVelocity, Scene, SceneError, StepSize};
+use crate::scheme::standard::{self, Quadrature};
+
+/// A run that had to stop.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SimError {
+    /// The state blew up: a node moved more than half a spacing in one step, or became NaN.
+    Unstable {
+        step: u64,
+        time: f64,
+        max_speed: f64,
+        dt: f64,
+        stable_dt: f64,
+    },
+}
+
+impl std::fmt::Display for SimError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SimError::Unstable {
+                step,
+                time,
+                max_speed,
+                dt,
+                stable_dt,
+            } => write!(
+                f,
+                "numerical instability at step {step} (t = {time:.4e} s): max speed {max_speed:.3e} m/s \
+                 moves a node more than half a spacing per step. Δt = {dt:.3e} s is {:.2}× the stable \
+                 bound {stable_dt:.3e} s of (3.8); lower time.dt or time.dt_factor. The run was stopped \
+                 before writing a non-finite frame.",
+                dt / stable_dt
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SimError {}
+
+/// Wall time spent in each stage of `step()`.
+#[derive(Debug, Clone, Default)]
+pub struct StageTimers {
+    pub kick_drift: WallDuration,
+    pub forces: WallDuration,
+    pub constraints: WallDuration,
+    pub kick: WallDuration,
+}
+
+impl StageTimers {
+    pub fn total(&self) -> WallDuration {
+        self.kick_drift + self.forces + self.constraints + self.kick
+    }
+
+    pub fn named(&self) -> [(&'static str, WallDuration); 4] {
+        [
+            ("kick_drift", self.kick_drift),
+            ("forces", self.forces),
+            ("constraints", self.constraints),
+            ("kick", self.kick),
+        ]
+    }
+}
+
+/// Static facts about a built simulation.
+#[derive(Debug, Clone)]
+pub struct SimInfo {
+    pub dim: usize,
+    pub nodes: usize,
+    pub bonds: usize,
+    pub dt: f64,
+    pub stable_dt: f64,
+    pub total_steps: u64,
+    pub frame_every: u64,
+    pub bytes_per_bond: f64,
+}
+
+/// Dimension-erased interface used by the CLI, sinks and benchmarks.
+pub trait Stepper: Send {
+    fn step(&mut self) -> Result<(), SimError>;
+    fn frame(&mut self) -> Frame;
+    fn info(&self) -> SimInfo;
+    fn steps_done(&self) -> u64;
+    fn time(&self) -> f64;
+    fn timers(&self) -> &StageTimers;
+    /// Final crack angles `(name, degrees)` (None where no crack was found).
+    fn crack_angles(&self) -> Vec<(String, Option<f64>)>;
+    fn broken_bonds(&self) -> u64;
+}
+
+/// Builds the simulation of a scene in its dimension.
+pub fn build(scene: &Scene) -> Result<Box<dyn Stepper>, SceneError> {
+    Ok(match scene.dim {
+        1 => Box::new(Simulation::<1>::new(scene)?),
+        2 => Box::new(Simulation::<2>::new(scene)?),
+        _ => Box::new(Simulation::<3>::new(scene)?),
+    })
+}
+
+/// A prescribed node component: node, axis, value.
+type Held = (u32, u8, f64);
+
+pub struct Simulation<const D: usize> {
+    pub scene: Scene,
+    pub lattice: Lattice<D>,
+    pub families: Families,
+    pub intact: Vec<AtomicU8>,
+    pub positions: Vec<[f64; D]>,
+    pub velocities: Vec<[f64; D]>,
+    pub accelerations: Vec<[f64; D]>,
+    force: Vec<[f64; D]>,
+    body_force: Vec<[f64; D]>,
+    held_velocity: Vec<Held>,
+    held_displacement: Vec<Held>,
+    pub law: PmbLaw,
+    pub quadrature: Quadrature,
+    pub dt: f64,
+    pub stable_dt: f64,
+    pub total_steps: u64,
+    pub frame_every: u64,
+    step: u64,
+    broken: u64,
+    timers: StageTimers,
+    velocity_scale: f64,
+    last_frame: (u64, Instant),
+}
+
+impl<const D: usize> Simulation<D> {
+    pub fn new(scene: &Scene) -> Result<Self, SceneError> {
+        let error = |field: &str, message: String| SceneError {
+            file: scene.source.clone(),
+            field: field.to_string(),
+            line: locate_field(&scene.preset_text, field),
+            message,
+        };
+        let lattice =
+            Lattice::<D>::build(&scene.solid, scene.spacing, scene.perturbation, scene.seed);
+        if lattice.is_empty() {
+            return Err(error(
+                "geometry",
+                "the body contains no lattice node; check its size against discretization.spacing"
+                    .into(),
+            ));
+        }
+        let radius = family::search_radius(scene.family_radius, scene.horizon, scene.spacing);
+        let families = Families::build(&lattice.positions, radius);
+        let intact = standard::intact_bonds(families.bond_count());
+        for (c, crack) in scene.precracks.iter().enumerate() {
+            let mut cut = 0usize;
+            for i in 0..lattice.len() {
+                for b in families.range(i) {
+                    let j = families.neighbors[b] as usize;
+                    let (a, bpos) = (&lattice.positions[i], &lattice.positions[j]);
+                    if family::crosses(crack, a, bpos) || family::crosses(crack, bpos, a) {
+                        intact[b].store(0, Relaxed);
+                        cut += 1;
+                    }
+                }
+            }
+            if cut == 0 {
+                return Err(error(
+                    &format!("precracks[{c}]"),
+                    "cuts no bond: the pre-crack lies outside the body (or between nodes)".into(),
+                ));
+            }
+        }
+        let m = &scene.material;
+        let law = PmbLaw {
+            micromodulus: m.micromodulus,
+            critical_stretch: m.critical_stretch.unwrap_or(f64::INFINITY),
+            influence: m.influence,
+            horizon: scene.horizon,
+        };
+        let quadrature = Quadrature {
+            spacing: scene.spacing,
+            horizon: scene.horizon,
+            volume_correction: scene.volume_correction,
+        };
+        let stable_dt = integrate::stable_step(
+            m.density,
+            &standard::stiffness_sums(&lattice.volumes, &families, &law, &quadrature),
+        );
+        let dt = match scene.time.step {
+            StepSize::Absolute(dt) => {
+                if dt > stable_dt && !scene.time.allow_unstable {
+                    return Err(error(
+                        "time.dt",
+                        format!(
+                            "{dt:.4e} s is above the stable bound {stable_dt:.4e} s of (3.8) \
+                             ({:.2}×); lower it, use dt_factor ≤ 1, or set time.allow_unstable = true",
+                            dt / stable_dt
+                        ),
+                    ));
+                }
+                dt
+            }
+            StepSize::FractionOfStable(f) => f * stable_dt,
+        };
+        let total_steps = match scene.time.duration {
+            Duration::Steps(n) => n,
+            Duration::End(t) => ((t / dt) - 1e-9).ceil().max(1.0) as u64,
+        };
+        let frame_every = scene.output_every.unwrap_or((total_steps / 100).max(1));
+
+        let n = lattice.len();
+        let mut sim = Simulation {
+            positions: lattice.positions.clone(),
+            velocities: vec![[0.0; D]; n],
+            accelerations: vec![[0.0; D]; n],
+            force: vec![[0.0; D]; n],
+            body_force: Vec::new(),
+            held_velocity: Vec::new(),
+            held_displacement: Vec::new(),
+            scene: scene.clone(),
+            lattice,
+            families,
+            intact,
+            law,
+            quadrature,
+            dt,
+            stable_dt,
+            total_steps,
+            frame_every,
+            step: 0,
+            broken: 0,
+            timers: StageTimers::default(),
+            velocity_scale: 1.0,
+            last_frame: (0, Instant::now()),
+        };
+        sim.apply_initial_velocity();
+        sim.collect_boundary_layers().map_err(|(f, msg)| error(&f, msg))?;
+        sim.apply_constraints();
+        sim.velocity_scale = sim.initial_velocity_scale();
+        sim.update_accelerations();
+        Ok(sim)
+    }
+
+    fn apply_initial_velocity(&mut self) {
+        let (lo, hi) = self.scene.solid.bounds();
+        for field in &self.scene.initial_velocity {
+            for (v, x) in self.velocities.iter_mut().zip(&self.lattice.positions) {
+                match *field {
+                    InitialVelocity::Uniform(ref value) => {
+                        for k in 0..D {
+                            v[k] += value[k];
+                        }
+                    }
+                    InitialVelocity::Ramp {
+                        component,
+                        axis,
+                        from,
+                        to,
+                    } => {
+                        let t = (x[axis] - lo[axis]) / (hi[axis] - lo[axis]);
+                        v[component] += from + t * (to - from);
+                    }
+                    InitialVelocity::Sine {
+                        component,
+                        axis,
+                        amplitude,
+                        modes,
+                    } => {
+                        let t = (x[axis] - lo[axis]) / (hi[axis] - lo[axis]);
+                        v[component] += amplitude * (std::f64::consts::PI * modes * t).sin();
+                    }
+                }
+            }
+        }
+    }
+
+    fn collect_boundary_layers(&mut self) -> Result<(), (String, String)> {
+        let (lo, hi) = self.scene.solid.bounds();
+        let eps = 1e-9 * self.scene.spacing;
+        for (l, layer) in self.scene.boundary.iter().enumerate() {
+            let mut count = 0;
+            for (i, x) in self.lattice.positions.iter().enumerate() {
+                let in_face = layer.face.is_none_or(|(a, upper, t)| {
+                    if upper {
+                        x[a] >= hi[a] - t - eps
+                    } else {
+                        x[a] <= lo[a] + t + eps
+                    }
+                });
+                let in_region = layer.region.as_ref().is_none_or(|r| r.contains(x, eps));
+                if !(in_face && in_region) {
+                    continue;
+                }
+                count += 1;
+                match layer.condition {
+                    Condition::Velocity => self
+                        .held_velocity
+                        .extend(layer.axes.iter().map(|&a| (i as u32, a as u8, layer.value[a]))),
+                    Condition::Displacement => self
+                        .held_displacement
+                        .extend(layer.axes.iter().map(|&a| (i as u32, a as u8, layer.value[a]))),
+                    Condition::BodyForce => {
+                        if self.body_force.is_empty() {
+                            self.body_force = vec![[0.0; D]; self.lattice.len()];
+                        }
+                        for &a in &layer.axes {
+                            self.body_force[i][a] += layer.value[a];
+                        }
+                    }
+                }
+            }
+            if count == 0 {
+                return Err((
+                    format!("boundary[{l}]"),
+                    format!("layer `{}` selects no node; widen its region or thickness", layer.name),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Held velocities and displacements (velocity layers also move the node).
+    fn apply_constraints(&mut self) {
+        for &(i, a, value) in &self.held_velocity {
+            self.velocities[i as usize][a as usize] = value;
+        }
+        for &(i, a, value) in &self.held_displacement {
+            let (i, a) = (i as usize, a as usize);
+            self.positions[i][a] = self.lattice.positions[i][a] + value;
+            self.velocities[i][a] = 0.0;
+        }
+    }
+
+    fn initial_velocity_scale(&self) -> f64 {
+        let max = self
+            .velocities
+            .iter()
+            .map(|v| v.iter().map(|x| x * x).sum::<f64>().sqrt())
+            .fold(0.0, f64::max);
+        if max > 0.0 { 2.0 * max } else { 1.0 }
+    }
+
+    fn update_accelerations(&mut self) {
+        self.broken += standard::pmb_forces(
+            &self.positions,
+            &self.lattice.volumes,
+            &self.families,
+            &self.intact,
+            &self.law,
+            &self.quadrature,
+            &mut self.force,
+        );
+        let inv_rho = 1.0 / self.scene.material.density;
+        let body = &self.body_force;
+        for (i, (a, f)) in self.accelerations.iter_mut().zip(&self.force).enumerate() {
+            for k in 0..D {
+                let b = if body.is_empty() { 0.0 } else { body[i][k] };
+                a[k] = (f[k] + b) * inv_rho;
+            }
+        }
+    }
+
+    pub fn damage(&self) -> Vec<f64> {
+        standard::damage(
+            &self.lattice.volumes,
+            &self.families,
+            &self.intact,
+            &self.quadrature,
+        )
+    }
+
+    pub fn strain_energy(&self) -> f64 {
+        standard::strain_energy(
+            &self.positions,
+            &self.lattice.volumes,
+            &self.families,
+            &self.intact,
+            &self.law,
+            &self.quadrature,
+        )
+    }
+
+    /// Strain-energy density W_i of one node (J/m³).
+    pub fn energy_density(&self, i: usize) -> f64 {
+        standard::energy_density(
+            i,
+            &self.positions,
+            &self.lattice.volumes,
+            &self.families,
+            &self.intact,
+            &self.law,
+            &self.quadrature,
+        )
+    }
+
+    pub fn kinetic_energy_and_momentum(&self) -> (f64, [f64; D]) {
+        metrics::kinetic_energy_and_momentum(
+            &self.velocities,
+            &self.lattice.volumes,
+            self.scene.material.density,
+        )
+    }
+
+    /// Force density on each node at the current positions (N/m³), without body forces.
+    pub fn force_density(&self) -> &[[f64; D]] {
+        &self.force
+    }
+
+    /// Recomputes forces after positions were set by hand (tests, restarts).
+    pub fn refresh_forces(&mut self) {
+        self.update_accelerations();
+    }
+
+    fn crack_angles_for(&self, damage: &[f64]) -> Vec<(String, Option<f64>)> {
+        self.scene
+            .crack_angles
+            .iter()
+            .map(|spec| {
+                let angle = metrics::crack_angle(
+                    spec,
+                    &self.lattice.positions,
+                    damage,
+                    &self.families,
+                    self.scene.spacing,
+                    self.scene.horizon,
+                );
+                (spec.name.clone(), angle)
+            })
+            .collect()
+    }
+}
+
+impl<const D: usize> Stepper for Simulation<D> {
+    fn step(&mut self) -> Result<(), SimError> {
+        let dt = self.dt;
+        let t0 = Instant::now();
+        verlet::half_kick(&mut self.velocities, &self.accelerations, dt);
+        for &(i, a, value) in &self.held_velocity {
+            self.velocities[i as usize][a as usize] = value;
+        }
+        verlet::drift(&mut self.positions, &self.velocities, dt);
+        let t1 = Instant::now();
+        self.update_accelerations();
+        let t2 = Instant::now();
+        let max_speed2 = verlet::half_kick_max_speed2(&mut self.velocities, &self.accelerations, dt);
+        let t3 = Instant::now();
+        self.apply_constraints();
+        let t4 = Instant::now();
+        self.timers.kick_drift += t1 - t0;
+        self.timers.forces += t2 - t1;
+        self.timers.kick += t3 - t2;
+        self.timers.constraints += t4 - t3;
+        self.step += 1;
+        let max_speed = max_speed2.sqrt();
+        if !(max_speed * dt <= 0.5 * self.scene.spacing) {
+            return Err(SimError::Unstable {
+                step: self.step,
+                time: self.time(),
+                max_speed,
+                dt,
+                stable_dt: self.stable_dt,
+            });
+        }
+        Ok(())
+    }
+
+    fn frame(&mut self) -> Frame {
+        let damage = self.damage();
+        let speed: Vec<f64> = self
+            .velocities
+            .iter()
+            .map(|v| v.iter().map(|x| x * x).sum::<f64>().sqrt())
+            .collect();
+        let (kinetic, momentum) = self.kinetic_energy_and_momentum();
+        let strain = self.strain_energy();
+        let now = Instant::now();
+        let (last_step, last_time) = self.last_frame;
+        let steps_since = self.step.saturating_sub(last_step);
+        let step_wall = if steps_since > 0 {
+            (now - last_time).as_secs_f64() / steps_since as f64
+        } else {
+            0.0
+        };
+        self.last_frame = (self.step, now);
+        let mut scalars = vec![
+            ("energy/kinetic".to_string(), kinetic),
+            ("energy/strain".to_string(), strain),
+            ("energy/total".to_string(), kinetic + strain),
+            ("bonds/broken".to_string(), self.broken as f64),
+            ("timing/step_wall_s".to_string(), step_wall),
+        ];
+        for (k, p) in momentum.iter().enumerate() {
+            scalars.push((format!("momentum/{}", ["x", "y", "z"][k]), *p));
+        }
+        for (name, angle) in self.crack_angles_for(&damage) {
+            if let Some(a) = angle {
+                scalars.push((format!("crack_angle_deg/{name}"), a));
+            }
+        }
+        Frame {
+            step: self.step,
+            time: self.time(),
+            dim: D,
+            positions: self.positions.iter().flatten().copied().collect(),
+            fields: vec![
+                NodeField {
+                    name: "damage",
+                    values: damage,
+                    range: (0.0, 1.0),
+                },
+                NodeField {
+                    name: "velocity",
+                    values: speed,
+                    range: (0.0, self.velocity_scale),
+                },
+            ],
+            scalars,
+        }
+    }
+
+    fn info(&self) -> SimInfo {
+        SimInfo {
+            dim: D,
+            nodes: self.lattice.len(),
+            bonds: self.families.bond_count(),
+            dt: self.dt,
+            stable_dt: self.stable_dt,
+            total_steps: self.total_steps,
+            frame_every: self.frame_every,
+            bytes_per_bond: self.families.bytes_per_bond() + 1.0,
+        }
+    }
+
+    fn steps_done(&self) -> u64 {
+        self.step
+    }
+
+    fn time(&self) -> f64 {
+        self.step as f64 * self.dt
+    }
+
+    fn timers(&self) -> &StageTimers {
+        &self.timers
+    }
+
+    fn crack_angles(&self) -> Vec<(String, Option<f64>)> {
+        self.crack_angles_for(&self.damage())
+    }
+
+    fn broken_bonds(&self) -> u64 {
+        self.broken
+    }
+}

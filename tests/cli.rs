@@ -1,0 +1,206 @@
+//! The command line end to end: bad input gives one clear error and exit code 2, a recording
+//! reads back with the expected layout, and an interrupted recording stays readable.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+use peridyn::readback;
+
+fn peridyn(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_peridyn"))
+        .args(args)
+        .output()
+        .expect("run peridyn")
+}
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("peridyn-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+const GOOD: &str = r#"
+name = "plate"
+dimension = 2
+[geometry]
+box = { min = [0.0, 0.0], max = ["20 mm", "10 mm"] }
+[discretization]
+spacing = "1 mm"
+horizon_factor = 3
+[material]
+density = "8000 kg/m^3"
+youngs_modulus = "190 GPa"
+fracture_energy = "22170 J/m^2"
+[[precracks]]
+segment = { from = ["0 mm", "5 mm"], to = ["5 mm", "5 mm"] }
+[time]
+dt_factor = 0.5
+steps = 10
+"#;
+
+/// Writes a preset, runs `peridyn check` on it and returns (exit code, stderr).
+fn check(name: &str, text: &str) -> (i32, String) {
+    let path = temp(name);
+    std::fs::write(&path, text).unwrap();
+    let out = peridyn(&["check", path.to_str().unwrap()]);
+    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stderr).to_string())
+}
+
+fn assert_clear_error(name: &str, text: &str, must_contain: &[&str]) {
+    let (code, stderr) = check(name, text);
+    assert_eq!(code, 2, "{name}: exit code {code}, stderr: {stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(stderr.trim().lines().filter(|l| l.starts_with("error")).count(), 1, "{stderr}");
+    assert!(stderr.contains(name), "error must name the file: {stderr}");
+    for s in must_contain {
+        assert!(stderr.contains(s), "{name}: `{s}` missing from: {stderr}");
+    }
+}
+
+#[test]
+fn good_preset_checks() {
+    let (code, stderr) = check("good.toml", GOOD);
+    assert_eq!(code, 0, "{stderr}");
+}
+
+#[test]
+fn unknown_field_is_named_with_its_line() {
+    let text = GOOD.replace("density = \"8000 kg/m^3\"", "density = \"8000 kg/m^3\"\ncolour = \"red\"");
+    assert_clear_error("unknown.toml", &text, &["colour", ":11"]);
+}
+
+#[test]
+fn negative_horizon_is_refused() {
+    let text = GOOD.replace("horizon_factor = 3", "horizon_factor = -3");
+    assert_clear_error("negative.toml", &text, &["discretization.horizon_factor", ":8", "> 0"]);
+}
+
+#[test]
+fn time_step_above_the_bound_is_refused() {
+    let text = GOOD.replace("dt_factor = 0.5", "dt = \"1 us\"");
+    assert_clear_error("dt.toml", &text, &["time.dt", "stable bound", "allow_unstable"]);
+}
+
+#[test]
+fn precrack_outside_the_body_is_refused() {
+    let text = GOOD.replace(
+        "segment = { from = [\"0 mm\", \"5 mm\"], to = [\"5 mm\", \"5 mm\"] }",
+        "segment = { from = [\"30 mm\", \"5 mm\"], to = [\"40 mm\", \"5 mm\"] }",
+    );
+    assert_clear_error("crack.toml", &text, &["precracks[0]", "outside the body"]);
+}
+
+#[test]
+fn malformed_toml_gives_the_line() {
+    let text = GOOD.replace("horizon_factor = 3", "horizon_factor = = 3");
+    assert_clear_error("broken.toml", &text, &[":8"]);
+}
+
+#[test]
+fn unknown_preset_and_variant() {
+    let out = peridyn(&["check", "no-such-preset"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("kalthoff-winkler"));
+    let out = peridyn(&["check", "kalthoff-winkler", "--variant", "huge"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("small") && err.contains("medium"), "{err}");
+}
+
+#[test]
+fn every_builtin_preset_and_variant_checks() {
+    let out = peridyn(&["list"]);
+    assert!(out.status.success());
+    let list = String::from_utf8_lossy(&out.stdout).to_string();
+    for name in peridyn::scene::builtin::names() {
+        assert!(list.contains(name));
+        let preset: peridyn::scene::Preset = toml::from_str(peridyn::scene::builtin::text(name).unwrap()).unwrap();
+        assert!(preset.variants.contains_key("small"), "{name} has no `small` variant");
+        for variant in preset.variants.keys() {
+            // Validation only (no discretization): the paper variants are large.
+            peridyn::scene::Scene::load(name, Some(variant)).unwrap_or_else(|e| panic!("{e}"));
+        }
+    }
+}
+
+fn steps_of(rec: &readback::Recording, entity: &str) -> Vec<i64> {
+    rec.entity(entity)
+        .unwrap_or_else(|| panic!("no entity {entity}; have {:?}", rec.entities.keys().collect::<Vec<_>>()))
+        .points
+        .keys()
+        .copied()
+        .collect()
+}
+
+#[test]
+fn kalthoff_winkler_small_recording_reads_back() {
+    let path = temp("kw-small.rrd");
+    let out = peridyn(&["record", "kalthoff-winkler", "--variant", "small", "-o", path.to_str().unwrap(), "-q"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("bond evaluations/s"), "{stdout}");
+
+    let scene = peridyn::scene::Scene::load("kalthoff-winkler", Some("small")).unwrap();
+    let sim = peridyn::sim::build(&scene).unwrap();
+    let info = sim.info();
+    let rec = readback::read(&path).unwrap();
+    let mut expected: Vec<i64> = (0..=info.total_steps).step_by(info.frame_every as usize).map(|s| s as i64).collect();
+    if *expected.last().unwrap() != info.total_steps as i64 {
+        expected.push(info.total_steps as i64);
+    }
+    for entity in ["/nodes/damage", "/nodes/velocity"] {
+        assert_eq!(steps_of(&rec, entity), expected, "{entity}: one frame per output step");
+        let content = rec.entity(entity).unwrap();
+        assert!(content.points.values().all(|&n| n == info.nodes), "one point per node");
+        assert_eq!(content.values.len(), expected.len(), "{entity}: raw values every frame");
+        assert!(content.values.values().all(|v| v.len() == info.nodes));
+    }
+    let damage = &rec.entity("/nodes/damage").unwrap().values;
+    let last = damage.values().last().unwrap();
+    assert!(last.iter().all(|v| (0.0..=1.0).contains(v)));
+    assert!(last.iter().filter(|&&v| v > 0.35).count() > 100, "cracks grew");
+    for metric in ["/metrics/energy/kinetic", "/metrics/energy/strain", "/metrics/energy/total", "/metrics/momentum/x", "/metrics/bonds/broken", "/metrics/timing/step_wall_s"] {
+        let series = &rec.entity(metric).unwrap_or_else(|| panic!("no {metric}")).scalars;
+        assert_eq!(series.len(), expected.len(), "{metric}");
+    }
+    let preset = rec.entity("/scene/preset").expect("preset document");
+    assert!(preset.texts.iter().any(|t| t.contains(&scene.preset_text)), "preset text stored whole");
+}
+
+fn wait_for(path: &Path, min_bytes: u64, timeout: Duration) {
+    let start = Instant::now();
+    while start.elapsed() < timeout {
+        if std::fs::metadata(path).map(|m| m.len() >= min_bytes).unwrap_or(false) {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    panic!("{} did not grow to {min_bytes} bytes", path.display());
+}
+
+#[test]
+fn interrupted_recording_is_readable_and_complete_up_to_the_signal() {
+    let path = temp("kw-interrupted.rrd");
+    let child = Command::new(env!("CARGO_BIN_EXE_peridyn"))
+        .args(["record", "kalthoff-winkler", "--variant", "medium", "--every", "5", "-q", "-o", path.to_str().unwrap()])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for(&path, 2_000_000, Duration::from_secs(120));
+    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(status.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130), "{}", String::from_utf8_lossy(&out.stderr));
+    let rec = readback::read(&path).unwrap();
+    let events = &rec.entity("/log/events").expect("the interruption is logged").texts;
+    let step: i64 = events
+        .iter()
+        .find_map(|t| t.strip_prefix("interrupted at step "))
+        .and_then(|s| s.trim().parse().ok())
+        .unwrap_or_else(|| panic!("{events:?}"));
+    let steps = steps_of(&rec, "/nodes/damage");
+    let expected: Vec<i64> = (0..=step).step_by(5).collect();
+    assert_eq!(steps, expected, "every frame logged before the signal is in the file");
+}

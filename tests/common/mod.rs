@@ -1,0 +1,34 @@
+#![allow(dead_code)]
+//! Helpers shared by the integration tests.
+
+use peridyn::scene::Scene;
+
+/// A scene from inline preset text.
+pub fn scene(text: &str) -> Scene {
+    Scene::from_text("test.toml", text, None).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// A block scene of `n` spacings per side in `dim` dimensions with horizon factor `m`.
+pub fn block(dim: usize, n: usize, m: f64, plane: &str, extra: &str) -> Scene {
+    let max = vec![format!("{}", n as f64 * 1e-3); dim].join(", ");
+    let min = vec!["0.0"; dim].join(", ");
+    scene(&format!(
+        r#"
+name = "block"
+dimension = {dim}
+[geometry]
+box = {{ min = [{min}], max = [{max}] }}
+[discretization]
+spacing = 1e-3
+horizon_factor = {m}
+[material]
+density = 1000.0
+youngs_modulus = 1e9
+plane = "{plane}"
+{extra}
+[time]
+dt_factor = 0.5
+steps = 10
+"#
+    ))
+}
