@@ -158,13 +158,14 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
             let sim = sim::build(&scene).map_err(|e| Failure::BadInput(e.to_string()))?;
             let info = sim.info();
             println!(
-                "{} ({}D): {} nodes, {} directed bonds, Δt = {:.4e} s (stable bound {:.4e} s), {} steps, a frame every {}",
+                "{} ({}D): {} nodes, {} directed bonds, Δt = {:.4e} s (stable bound {:.4e} s; (3.8) estimate {:.4e} s), {} steps, a frame every {}",
                 scene.name,
                 info.dim,
                 info.nodes,
                 info.bonds,
                 info.dt,
                 info.stable_dt,
+                info.gershgorin_dt,
                 info.total_steps,
                 info.frame_every
             );

@@ -27,7 +27,7 @@ dimension = 2
 box = { min = [0.0, 0.0], max = ["20 mm", "10 mm"] }
 [discretization]
 spacing = "1 mm"
-horizon_factor = 3
+horizon = "3 dx"
 [material]
 density = "8000 kg/m^3"
 youngs_modulus = "190 GPa"
@@ -35,8 +35,8 @@ fracture_energy = "22170 J/m^2"
 [[precracks]]
 segment = { from = ["0 mm", "5 mm"], to = ["5 mm", "5 mm"] }
 [time]
-dt_factor = 0.5
-steps = 10
+dt = "0.5 stable"
+end = "10 steps"
 "#;
 
 /// Writes a preset, runs `peridyn check` on it and returns (exit code, stderr).
@@ -72,13 +72,13 @@ fn unknown_field_is_named_with_its_line() {
 
 #[test]
 fn negative_horizon_is_refused() {
-    let text = GOOD.replace("horizon_factor = 3", "horizon_factor = -3");
-    assert_clear_error("negative.toml", &text, &["discretization.horizon_factor", ":8", "> 0"]);
+    let text = GOOD.replace("horizon = \"3 dx\"", "horizon = \"-3 dx\"");
+    assert_clear_error("negative.toml", &text, &["discretization.horizon", ":8", "> 0"]);
 }
 
 #[test]
 fn time_step_above_the_bound_is_refused() {
-    let text = GOOD.replace("dt_factor = 0.5", "dt = \"1 us\"");
+    let text = GOOD.replace("dt = \"0.5 stable\"", "dt = \"1 us\"");
     assert_clear_error("dt.toml", &text, &["time.dt", "stable bound", "allow_unstable"]);
 }
 
@@ -93,7 +93,7 @@ fn precrack_outside_the_body_is_refused() {
 
 #[test]
 fn malformed_toml_gives_the_line() {
-    let text = GOOD.replace("horizon_factor = 3", "horizon_factor = = 3");
+    let text = GOOD.replace("horizon = \"3 dx\"", "horizon = = 3");
     assert_clear_error("broken.toml", &text, &[":8"]);
 }
 

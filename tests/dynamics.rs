@@ -69,8 +69,8 @@ fn free_plate_conserves_energy_and_momentum() {
 #[test]
 fn unstable_step_is_detected_and_stopped_before_non_finite_frames() {
     let text = Scene::load("vibrating-plate", None).unwrap().preset_text.replace(
-        "dt_factor = 0.5\nsteps = 2000",
-        "dt_factor = 1.5\nsteps = 2000\nallow_unstable = true",
+        "dt = \"0.5 stable\"\nend = \"2000 steps\"",
+        "dt = \"1.5 stable\"\nend = \"2000 steps\"\nallow_unstable = true",
     );
     let scene = Scene::from_text("unstable.toml", &text, None).unwrap();
     let (summary, sink) = run_to_end(&scene);
@@ -92,15 +92,15 @@ fn dt_above_the_bound_needs_allow_unstable() {
     let text = Scene::load("vibrating-plate", None)
         .unwrap()
         .preset_text
-        .replace("dt_factor = 0.5", "dt_factor = 1.5");
+        .replace("dt = \"0.5 stable\"", "dt = \"1.5 stable\"");
     let err = Scene::from_text("fast.toml", &text, None).unwrap_err();
-    assert_eq!(err.field, "time.dt_factor");
+    assert_eq!(err.field, "time.dt");
     assert!(err.message.contains("allow_unstable"), "{err}");
     // An absolute Δt is checked against (3.8) once the families exist.
     let text = Scene::load("vibrating-plate", None)
         .unwrap()
         .preset_text
-        .replace("dt_factor = 0.5", "dt = \"1 ms\"");
+        .replace("dt = \"0.5 stable\"", "dt = \"1 ms\"");
     let scene = Scene::from_text("fast.toml", &text, None).unwrap();
     let err = sim::build(&scene).err().expect("Δt above the bound is refused");
     assert_eq!(err.field, "time.dt");
@@ -119,14 +119,14 @@ dimension = 1
 box = { min = [0.0], max = [1e-3] }
 [discretization]
 spacing = 1e-3
-horizon_factor = 1.0
+horizon = "1 dx"
 [material]
 density = 1000.0
 youngs_modulus = 1e9
 critical_stretch = 0.01
 [time]
-dt_factor = 0.5
-steps = 1
+dt = "0.5 stable"
+end = "1 steps"
 "#,
     );
     let mut sim = Simulation::<1>::new(&scene).unwrap();

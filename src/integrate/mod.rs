@@ -1,8 +1,10 @@
 //! Time integrators and stable-step estimates.
 
+pub mod stability;
 pub mod verlet;
 
-/// Stable step of linearized bond-based PD (3.8): min_i √(2ρ / Σ_j ‖C(ξ_ij)‖ β V_j).
+/// Stable step estimate (3.8): min_i √(2ρ / Σ_j ‖C(ξ_ij)‖ β V_j), a Gershgorin bound (see
+/// `stability`).
 pub fn stable_step(density: f64, stiffness_sums: &[f64]) -> f64 {
     let max = stiffness_sums.iter().copied().fold(0.0, f64::max);
     if max > 0.0 {

@@ -77,7 +77,7 @@ mod tests {
 
     #[test]
     fn three_d_rows_agree_with_bulk_modulus_forms() {
-        let (e, g0, d) = (70e9, 100.0, 1e-3);
+        let (e, g0, d): (f64, f64, f64) = (70e9, 100.0, 1e-3);
         let k = e / (3.0 * (1.0 - 2.0 * 0.25));
         for (inf, printed_c, printed_s0) in [
             (

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use serde::Deserialize;
 
 use super::geometry::{Point, Shape};
-use super::units::Quantity;
+use super::units::{Measure, Quantity};
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -40,10 +40,8 @@ pub struct Preset {
 pub struct Discretization {
     /// Lattice spacing Δx.
     pub spacing: Quantity,
-    /// Horizon factor m = δ/Δx (give this or `horizon`).
-    pub horizon_factor: Option<f64>,
-    /// Horizon δ (give this or `horizon_factor`).
-    pub horizon: Option<Quantity>,
+    /// Horizon δ, absolute ("2 mm") or as m = δ/Δx ("4 dx").
+    pub horizon: Measure,
     /// Random node offsets, uniform in ±perturbation·Δx per component.
     #[serde(default)]
     pub perturbation: f64,
@@ -207,13 +205,10 @@ fn one() -> f64 {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TimeSpec {
-    /// Absolute time step.
-    pub dt: Option<Quantity>,
-    /// Time step as a fraction of the stable bound (3.8).
-    pub dt_factor: Option<f64>,
-    /// End time (give this or `steps`).
-    pub end: Option<Quantity>,
-    pub steps: Option<u64>,
+    /// Time step, absolute ("2 ns") or a fraction of the stable bound (3.8) ("0.5 stable").
+    pub dt: Measure,
+    /// Duration, as an end time ("87 us") or a number of steps ("2000 steps").
+    pub end: Measure,
     /// Permit Δt above the stable bound (the run is still stopped if it blows up).
     #[serde(default)]
     pub allow_unstable: bool,

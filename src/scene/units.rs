@@ -174,3 +174,77 @@ mod tests {
         assert!(parse_quantity("mm").is_err());
     }
 }
+
+/// What a relative amount is measured in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Relative {
+    /// "4 dx": multiples of the lattice spacing.
+    Spacing,
+    /// "0.5 stable": a fraction of the stable time step.
+    StableStep,
+    /// "2000 steps": a number of time steps.
+    Steps,
+}
+
+impl Relative {
+    pub fn unit(self) -> &'static str {
+        match self {
+            Relative::Spacing => "dx",
+            Relative::StableStep => "stable",
+            Relative::Steps => "steps",
+        }
+    }
+}
+
+/// A quantity in SI units or relative to the discretization: "2 mm" or "8 dx"; "2 ns" or
+/// "0.5 stable"; "87 us" or "2000 steps". One field per concept, so a variant can switch
+/// between the two forms by overriding a single key.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Measure {
+    Si(f64),
+    Relative(f64, Relative),
+}
+
+impl<'de> Deserialize<'de> for Measure {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Raw {
+            Number(f64),
+            Integer(i64),
+            Text(String),
+        }
+        match Raw::deserialize(deserializer)? {
+            Raw::Number(v) => Ok(Measure::Si(v)),
+            Raw::Integer(v) => Ok(Measure::Si(v as f64)),
+            Raw::Text(text) => parse_measure(&text).map_err(serde::de::Error::custom),
+        }
+    }
+}
+
+pub fn parse_measure(text: &str) -> Result<Measure, String> {
+    for relative in [Relative::Spacing, Relative::StableStep, Relative::Steps] {
+        if let Some(number) = text.trim().strip_suffix(relative.unit()) {
+            let value = number
+                .trim()
+                .parse()
+                .map_err(|_| format!("`{text}` is not a number followed by `{}`", relative.unit()))?;
+            return Ok(Measure::Relative(value, relative));
+        }
+    }
+    parse_quantity(text).map(Measure::Si)
+}
+
+#[cfg(test)]
+mod measure_tests {
+    use super::*;
+
+    #[test]
+    fn relative_and_absolute_measures() {
+        assert_eq!(parse_measure("8 dx").unwrap(), Measure::Relative(8.0, Relative::Spacing));
+        assert_eq!(parse_measure("0.5 stable").unwrap(), Measure::Relative(0.5, Relative::StableStep));
+        assert_eq!(parse_measure("2000 steps").unwrap(), Measure::Relative(2000.0, Relative::Steps));
+        assert_eq!(parse_measure("2 ns").unwrap(), Measure::Si(2e-9));
+        assert!(parse_measure("x steps").is_err());
+    }
+}

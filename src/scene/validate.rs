@@ -2,6 +2,7 @@
 
 use super::error::{ErrorContext, SceneError};
 use super::geometry::{Point, si};
+use super::units::{Measure, Relative};
 use super::schema::{BoundaryLayer, Precrack, Preset, VelocityField};
 use super::*;
 use crate::model::pmb;
@@ -23,13 +24,15 @@ pub(super) fn validate(
 
     let d = &p.discretization;
     let spacing = positive(ctx, "discretization.spacing", d.spacing.si())?;
-    let horizon = match (d.horizon_factor, d.horizon) {
-        (Some(m), None) => positive(ctx, "discretization.horizon_factor", m)? * spacing,
-        (None, Some(h)) => positive(ctx, "discretization.horizon", h.si())?,
-        _ => {
+    let horizon = match d.horizon {
+        Measure::Si(h) => positive(ctx, "discretization.horizon", h)?,
+        Measure::Relative(m, Relative::Spacing) => {
+            positive(ctx, "discretization.horizon", m)? * spacing
+        }
+        Measure::Relative(_, r) => {
             return Err(ctx.error(
-                "discretization.horizon_factor",
-                "give exactly one of `horizon_factor` (m = δ/Δx) and `horizon` (δ)",
+                "discretization.horizon",
+                format!("`{}` is not a length: give e.g. \"2 mm\" or \"4 dx\"", r.unit()),
             ));
         }
     };
@@ -342,13 +345,15 @@ fn velocity_field(v: &VelocityField, dim: usize, path: &str) -> Result<InitialVe
 
 fn time_spec(p: &Preset, ctx: &ErrorContext) -> Result<TimeSpec, SceneError> {
     let t = &p.time;
-    let step = match (t.dt, t.dt_factor) {
-        (Some(dt), None) => StepSize::Absolute(positive(ctx, "time.dt", dt.si())?),
-        (None, Some(f)) => StepSize::FractionOfStable(positive(ctx, "time.dt_factor", f)?),
-        _ => {
+    let step = match t.dt {
+        Measure::Si(dt) => StepSize::Absolute(positive(ctx, "time.dt", dt)?),
+        Measure::Relative(f, Relative::StableStep) => {
+            StepSize::FractionOfStable(positive(ctx, "time.dt", f)?)
+        }
+        Measure::Relative(_, r) => {
             return Err(ctx.error(
                 "time.dt",
-                "give exactly one of `dt` (seconds) and `dt_factor` (fraction of the stable bound)",
+                format!("`{}` is not a time step: give e.g. \"2 ns\" or \"0.5 stable\"", r.unit()),
             ));
         }
     };
@@ -357,20 +362,24 @@ fn time_spec(p: &Preset, ctx: &ErrorContext) -> Result<TimeSpec, SceneError> {
         && !t.allow_unstable
     {
         return Err(ctx.error(
-            "time.dt_factor",
+            "time.dt",
             format!(
-                "{f} is above the stable bound (3.8); use a value ≤ 1 or set time.allow_unstable = true"
+                "{f} stable is above the stable bound (3.8); use a value ≤ 1 or set time.allow_unstable = true"
             ),
         ));
     }
-    let duration = match (t.end, t.steps) {
-        (Some(end), None) => Duration::End(positive(ctx, "time.end", end.si())?),
-        (None, Some(n)) if n > 0 => Duration::Steps(n),
-        (None, Some(_)) => return Err(ctx.error("time.steps", "must be ≥ 1")),
-        _ => {
+    let duration = match t.end {
+        Measure::Si(end) => Duration::End(positive(ctx, "time.end", end)?),
+        Measure::Relative(n, Relative::Steps) if n >= 1.0 && n.fract() == 0.0 => {
+            Duration::Steps(n as u64)
+        }
+        Measure::Relative(n, Relative::Steps) => {
+            return Err(ctx.error("time.end", format!("{n} steps: must be a whole number ≥ 1")));
+        }
+        Measure::Relative(_, r) => {
             return Err(ctx.error(
                 "time.end",
-                "give exactly one of `end` (seconds) and `steps`",
+                format!("`{}` is not a duration: give e.g. \"87 us\" or \"2000 steps\"", r.unit()),
             ));
         }
     };

@@ -185,3 +185,43 @@ pub fn strain_energy<const D: usize>(
         })
         .sum()
 }
+
+/// The linearized operator of (3.1) per unit mass, applied to a displacement field:
+/// out_i = (1/ρ) Σ_j ω c (ξ⊗ξ/‖ξ‖³) (u_i − u_j) β V_j over intact bonds (the stiffness the
+/// stable-step bound needs; positive semi-definite in the mass inner product).
+pub fn apply_linearized<const D: usize>(
+    reference: &[[f64; D]],
+    volumes: &[f64],
+    families: &Families,
+    intact: &[AtomicU8],
+    law: &PmbLaw,
+    quadrature: &Quadrature,
+    density: f64,
+    u: &[[f64; D]],
+    out: &mut [[f64; D]],
+) {
+    let c = law.micromodulus / density;
+    out.par_iter_mut().enumerate().with_min_len(256).for_each(|(i, o)| {
+        let mut acc = [0.0; D];
+        for b in families.range(i) {
+            if intact[b].load(Relaxed) == 0 {
+                continue;
+            }
+            let j = families.neighbors[b] as usize;
+            let l = families.lengths[b];
+            let mut xi = [0.0; D];
+            let mut proj = 0.0;
+            for k in 0..D {
+                xi[k] = reference[j][k] - reference[i][k];
+                proj += xi[k] * (u[i][k] - u[j][k]);
+            }
+            let scale = c * influence(law.influence, l, law.horizon) * quadrature.beta(l) * volumes[j]
+                / (l * l * l)
+                * proj;
+            for k in 0..D {
+                acc[k] += scale * xi[k];
+            }
+        }
+        *o = acc;
+    });
+}

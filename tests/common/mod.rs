@@ -20,15 +20,15 @@ dimension = {dim}
 box = {{ min = [{min}], max = [{max}] }}
 [discretization]
 spacing = 1e-3
-horizon_factor = {m}
+horizon = "{m} dx"
 [material]
 density = 1000.0
 youngs_modulus = 1e9
 plane = "{plane}"
 {extra}
 [time]
-dt_factor = 0.5
-steps = 10
+dt = "0.5 stable"
+end = "10 steps"
 "#
     ))
 }
