@@ -8,7 +8,8 @@ pub fn scene(text: &str) -> Scene {
     Scene::from_text("test.toml", text, None).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// A block scene of `n` spacings per side in `dim` dimensions with horizon factor `m`.
+/// A block scene of `n` spacings per side in `dim` dimensions with horizon factor `m`;
+/// `extra` lines go into the `[discretization]` table.
 pub fn block(dim: usize, n: usize, m: f64, plane: &str, extra: &str) -> Scene {
     let max = vec![format!("{}", n as f64 * 1e-3); dim].join(", ");
     let min = vec!["0.0"; dim].join(", ");
@@ -21,11 +22,11 @@ box = {{ min = [{min}], max = [{max}] }}
 [discretization]
 spacing = 1e-3
 horizon = "{m} dx"
+{extra}
 [material]
 density = 1000.0
 youngs_modulus = 1e9
 plane = "{plane}"
-{extra}
 [time]
 dt = "0.5 stable"
 end = "10 steps"
