@@ -72,8 +72,20 @@ pub fn run(variant: Option<&str>, steps: Option<u64>) -> Result<String, String> 
 
     let mut rows = Vec::new();
     for threads in [1, all] {
-        rows.push(measure(&quiet_elastic, threads, steps, false, "elastic (V = 0.01 m/s)")?);
-        rows.push(measure(&quiet, threads, steps, false, "damaging (V = 10 m/s)")?);
+        rows.push(measure(
+            &quiet_elastic,
+            threads,
+            steps,
+            false,
+            "elastic (V = 0.01 m/s)",
+        )?);
+        rows.push(measure(
+            &quiet,
+            threads,
+            steps,
+            false,
+            "damaging (V = 10 m/s)",
+        )?);
     }
     let logged = measure(&damaging, all, steps, true, "damaging, recording to .rrd")?;
     let unlogged_wall = rows
@@ -84,8 +96,9 @@ pub fn run(variant: Option<&str>, steps: Option<u64>) -> Result<String, String> 
 
     let info = &logged.summary.info;
     let node_bytes = (5 * info.dim + 1) * 8 + 8; // reference, position, velocity, acceleration, force, volume, CSR offset
-    let bytes_per_bond =
-        info.bytes_per_bond + (node_bytes as f64 * info.nodes as f64) / info.bonds as f64 - 8.0 * info.nodes as f64 / info.bonds as f64;
+    let bytes_per_bond = info.bytes_per_bond
+        + (node_bytes as f64 * info.nodes as f64) / info.bonds as f64
+        - 8.0 * info.nodes as f64 / info.bonds as f64;
     let mut out = format!(
         "## peridyn bench: {PRESET}{}\n\n{} nodes, {} directed bonds, {} steps, Δt = {:.2e} s, {} hardware threads\n\n\
          | case | threads | wall [s] | bond evaluations/s (whole step) | bond evaluations/s (force stage) | broken bonds |\n\

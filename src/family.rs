@@ -53,6 +53,7 @@ impl Families {
             }
             offsets.push(neighbors.len());
         }
+        assert!(neighbors.iter().all(|&j| (j as usize) < positions.len()));
         Families {
             offsets,
             neighbors,
@@ -102,7 +103,13 @@ pub fn crosses(crack: &CrackGeometry, a: &[f64], b: &[f64]) -> bool {
             origin,
             edge_a,
             edge_b,
-        } => segment_crosses_patch([a[0], a[1], a[2]], [b[0], b[1], b[2]], origin, edge_a, edge_b),
+        } => segment_crosses_patch(
+            [a[0], a[1], a[2]],
+            [b[0], b[1], b[2]],
+            origin,
+            edge_a,
+            edge_b,
+        ),
     }
 }
 
@@ -117,7 +124,9 @@ fn segments_cross(a: [f64; 2], b: [f64; 2], p: [f64; 2], q: [f64; 2]) -> bool {
     let d2 = cross2(p, q, b);
     let d3 = cross2(a, b, p);
     let d4 = cross2(a, b, q);
-    let straddles_crack = (d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0) || (d1 == 0.0) != (d2 == 0.0) && (d1 > 0.0 || d2 > 0.0);
+    let straddles_crack = (d1 > 0.0 && d2 < 0.0)
+        || (d1 < 0.0 && d2 > 0.0)
+        || (d1 == 0.0) != (d2 == 0.0) && (d1 > 0.0 || d2 > 0.0);
     straddles_crack && ((d3 > 0.0) != (d4 > 0.0) || d3 == 0.0 || d4 == 0.0)
 }
 
@@ -135,12 +144,16 @@ fn segment_crosses_patch(
     ];
     let side = |x: [f64; 3]| (0..3).map(|k| (x[k] - origin[k]) * n[k]).sum::<f64>();
     let (sa, sb) = (side(a), side(b));
-    let straddles = (sa > 0.0 && sb < 0.0) || (sa < 0.0 && sb > 0.0) || (sa == 0.0) != (sb == 0.0) && (sa > 0.0 || sb > 0.0);
+    let straddles = (sa > 0.0 && sb < 0.0)
+        || (sa < 0.0 && sb > 0.0)
+        || (sa == 0.0) != (sb == 0.0) && (sa > 0.0 || sb > 0.0);
     if !straddles {
         return false;
     }
     let t = sa / (sa - sb);
-    let hit: Vec<f64> = (0..3).map(|k| a[k] + t * (b[k] - a[k]) - origin[k]).collect();
+    let hit: Vec<f64> = (0..3)
+        .map(|k| a[k] + t * (b[k] - a[k]) - origin[k])
+        .collect();
     // Solve hit = u·ea + v·eb in the least-squares sense (ea, eb span the plane).
     let dot = |x: &[f64], y: &[f64; 3]| (0..3).map(|k| x[k] * y[k]).sum::<f64>();
     let (aa, ab, bb) = (dot(ea, ea), dot(ea, eb), dot(eb, eb));
@@ -171,7 +184,10 @@ mod tests {
             .iter()
             .position(|p| p.iter().zip(&centre).all(|(a, b)| (a - b).abs() < 1e-12))
             .unwrap();
-        let fam = Families::build(&lattice.positions, search_radius(FamilyRadius::Horizon, m as f64, 1.0));
+        let fam = Families::build(
+            &lattice.positions,
+            search_radius(FamilyRadius::Horizon, m as f64, 1.0),
+        );
         fam.range(c).len() + 1
     }
 

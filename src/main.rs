@@ -141,8 +141,8 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
         Command::List => {
             for name in builtin::names() {
                 let scene = Scene::load(name, None).map_err(|e| Failure::Runtime(e.to_string()))?;
-                let preset: peridyn::scene::Preset =
-                    toml::from_str(&scene.preset_text).map_err(|e| Failure::Runtime(e.to_string()))?;
+                let preset: peridyn::scene::Preset = toml::from_str(&scene.preset_text)
+                    .map_err(|e| Failure::Runtime(e.to_string()))?;
                 let variants: Vec<&str> = preset.variants.keys().map(String::as_str).collect();
                 println!(
                     "{name:<20} {}\n{:<20} variants: {}",
@@ -176,7 +176,10 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
             let path = output.unwrap_or_else(|| default_output(&loaded));
             let summary = simulate(&loaded, RecordTarget::File(path.clone()), &run)?;
             println!("recording: {}", path.display());
-            println!("view it:   pip install 'rerun-sdk==0.36.*' && rerun {}", path.display());
+            println!(
+                "view it:   pip install 'rerun-sdk==0.36.*' && rerun {}",
+                path.display()
+            );
             Ok(exit_code(&summary))
         }
         Command::Run {
@@ -241,7 +244,11 @@ fn simulate(scene: &Scene, target: RecordTarget, args: &RunArgs) -> Result<RunSu
     eprintln!(
         "{}{}: {}D, {} nodes, {} bonds, Δt = {:.3e} s ({:.2}× stable), {} steps",
         scene.name,
-        scene.variant.as_deref().map(|v| format!(" [{v}]")).unwrap_or_default(),
+        scene
+            .variant
+            .as_deref()
+            .map(|v| format!(" [{v}]"))
+            .unwrap_or_default(),
         info.dim,
         info.nodes,
         info.bonds,
@@ -271,7 +278,7 @@ fn simulate(scene: &Scene, target: RecordTarget, args: &RunArgs) -> Result<RunSu
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let mut progress = |n: u64, _total: u64| {
-        if n % 16 == 0 || n == total {
+        if n.is_multiple_of(16) || n == total {
             bar.set_position(n);
         }
     };

@@ -35,12 +35,15 @@ pub fn crack_angle<const D: usize>(
     horizon: f64,
 ) -> Option<f64> {
     let n = reference.len();
-    let eligible =
-        |i: usize| damage[i] >= spec.threshold && spec.region.contains(&reference[i], 1e-9 * spacing);
+    let eligible = |i: usize| {
+        damage[i] >= spec.threshold && spec.region.contains(&reference[i], 1e-9 * spacing)
+    };
     let mut seen = vec![false; n];
     let mut queue = VecDeque::new();
     for i in 0..n {
-        let d2: f64 = (0..D).map(|k| (reference[i][k] - spec.tip[k]).powi(2)).sum();
+        let d2: f64 = (0..D)
+            .map(|k| (reference[i][k] - spec.tip[k]).powi(2))
+            .sum();
         if d2 <= (2.0 * horizon).powi(2) && eligible(i) {
             seen[i] = true;
             queue.push_back(i);
@@ -114,7 +117,10 @@ mod tests {
         let pts: Vec<[f64; 2]> = (0..20)
             .map(|i| {
                 let t = i as f64;
-                [t * 60f64.to_radians().cos(), t * 60f64.to_radians().sin() + 0.01 * (i % 2) as f64]
+                [
+                    t * 60f64.to_radians().cos(),
+                    t * 60f64.to_radians().sin() + 0.01 * (i % 2) as f64,
+                ]
             })
             .collect();
         let axis = principal_axis(pts.iter().map(|p| &p[..]), 2);
@@ -136,7 +142,13 @@ mod tests {
         let (s, c) = 65f64.to_radians().sin_cos();
         let damage: Vec<f64> = pos
             .iter()
-            .map(|p| if (p[0] * s - p[1] * c).abs() < 0.8 { 0.5 } else { 0.0 })
+            .map(|p| {
+                if (p[0] * s - p[1] * c).abs() < 0.8 {
+                    0.5
+                } else {
+                    0.0
+                }
+            })
             .collect();
         let spec = CrackAngleSpec {
             name: "test".into(),

@@ -75,7 +75,9 @@ pub fn read(path: &Path) -> Result<Recording, String> {
                 }
             } else if id == text || id == log_text {
                 for texts in chunk.iter_slices::<String>(id) {
-                    entry.texts.extend(texts.iter().map(|t| t.as_str().to_string()));
+                    entry
+                        .texts
+                        .extend(texts.iter().map(|t| t.as_str().to_string()));
                 }
             } else if id == scalar {
                 for ((t, _), v) in chunk

@@ -25,11 +25,19 @@ use crate::sim::SimInfo;
 pub enum RecordTarget {
     File(PathBuf),
     /// Stream to a running viewer; optionally also save to a file.
-    Connect { url: String, file: Option<PathBuf> },
+    Connect {
+        url: String,
+        file: Option<PathBuf>,
+    },
     /// Host a gRPC server viewers connect to, at `addr` = "IP:PORT".
-    Serve { addr: String, file: Option<PathBuf> },
+    Serve {
+        addr: String,
+        file: Option<PathBuf>,
+    },
     /// Start a local viewer (needs `rerun` on PATH).
-    Spawn { file: Option<PathBuf> },
+    Spawn {
+        file: Option<PathBuf>,
+    },
 }
 
 enum Message {
@@ -49,7 +57,8 @@ pub struct RerunSink {
 impl RerunSink {
     pub fn start(target: RecordTarget, scene: &Scene, info: &SimInfo) -> Result<Self, String> {
         let stream = open_stream(&target, scene)?;
-        log_scene(&stream, scene, info).map_err(|e| format!("cannot write to the recording: {e}"))?;
+        log_scene(&stream, scene, info)
+            .map_err(|e| format!("cannot write to the recording: {e}"))?;
         let (sender, receiver) = bounded(CHANNEL_CAPACITY);
         let radius = (0.5 * scene.spacing) as f32;
         let worker = std::thread::Builder::new()
@@ -129,7 +138,9 @@ fn open_stream(target: &RecordTarget, scene: &Scene) -> Result<RecordingStream, 
             check_reachable(url)?;
             let uri = url
                 .parse::<rerun::external::re_uri::ProxyUri>()
-                .map_err(|e| format!("bad viewer URL `{url}`: {e} (expected rerun+http://HOST:PORT/proxy)"))?;
+                .map_err(|e| {
+                    format!("bad viewer URL `{url}`: {e} (expected rerun+http://HOST:PORT/proxy)")
+                })?;
             match file {
                 Some(path) => builder().set_sinks((file_sink(path)?, GrpcSink::new(uri))),
                 None => builder().set_sinks((GrpcSink::new(uri),)),
@@ -137,12 +148,9 @@ fn open_stream(target: &RecordTarget, scene: &Scene) -> Result<RecordingStream, 
         }
         RecordTarget::Serve { addr, file } => {
             let (ip, port) = split_addr(addr)?;
-            let server = rerun::grpc_server::GrpcServerSink::new(
-                &ip,
-                port,
-                rerun::ServerOptions::default(),
-            )
-            .map_err(|e| format!("bad address `{addr}`: {e}"))?;
+            let server =
+                rerun::grpc_server::GrpcServerSink::new(&ip, port, rerun::ServerOptions::default())
+                    .map_err(|e| format!("bad address `{addr}`: {e}"))?;
             eprintln!(
                 "serving: connect a viewer with `rerun --connect rerun+http://127.0.0.1:{port}/proxy` (or this machine's address)"
             );
@@ -152,9 +160,11 @@ fn open_stream(target: &RecordTarget, scene: &Scene) -> Result<RecordingStream, 
             }
         }
         RecordTarget::Spawn { file } => {
-            let stream = builder()
-                .spawn()
-                .map_err(|e| format!("cannot start a viewer: {e} (install it with `pip install 'rerun-sdk==0.36.*'`)"))?;
+            let stream = builder().spawn().map_err(|e| {
+                format!(
+                    "cannot start a viewer: {e} (install it with `pip install 'rerun-sdk==0.36.*'`)"
+                )
+            })?;
             if let Some(path) = file {
                 let url = rerun::DEFAULT_CONNECT_URL
                     .parse::<rerun::external::re_uri::ProxyUri>()
@@ -200,11 +210,19 @@ fn check_reachable(url: &str) -> Result<(), String> {
     ))
 }
 
-fn log_scene(stream: &RecordingStream, scene: &Scene, info: &SimInfo) -> rerun::RecordingStreamResult<()> {
+fn log_scene(
+    stream: &RecordingStream,
+    scene: &Scene,
+    info: &SimInfo,
+) -> rerun::RecordingStreamResult<()> {
     let header = format!(
         "# {}{}\n\nsource: `{}`; {}D, {} nodes, {} directed bonds, Δt = {:.4e} s (stable bound {:.4e} s), {} steps.\n\n```toml\n{}\n```\n",
         scene.name,
-        scene.variant.as_deref().map(|v| format!(" — variant `{v}`")).unwrap_or_default(),
+        scene
+            .variant
+            .as_deref()
+            .map(|v| format!(" — variant `{v}`"))
+            .unwrap_or_default(),
         scene.source,
         info.dim,
         info.nodes,
@@ -217,7 +235,11 @@ fn log_scene(stream: &RecordingStream, scene: &Scene, info: &SimInfo) -> rerun::
     stream.log_static("scene/preset", &rerun::TextDocument::from_markdown(header))
 }
 
-fn log_loop(stream: RecordingStream, receiver: Receiver<Message>, radius: f32) -> Result<u64, String> {
+fn log_loop(
+    stream: RecordingStream,
+    receiver: Receiver<Message>,
+    radius: f32,
+) -> Result<u64, String> {
     let mut frames = 0;
     let mut result = Ok(());
     for message in receiver {
@@ -244,7 +266,11 @@ fn log_loop(stream: RecordingStream, receiver: Receiver<Message>, radius: f32) -
     result.map(|_| frames)
 }
 
-fn log_frame(stream: &RecordingStream, frame: &Frame, radius: f32) -> rerun::RecordingStreamResult<()> {
+fn log_frame(
+    stream: &RecordingStream,
+    frame: &Frame,
+    radius: f32,
+) -> rerun::RecordingStreamResult<()> {
     stream.set_time_sequence("step", frame.step as i64);
     stream.set_duration_secs("sim_time", frame.time);
     let dim = frame.dim;
@@ -257,8 +283,10 @@ fn log_frame(stream: &RecordingStream, frame: &Frame, radius: f32) -> rerun::Rec
         let raw: ArrayRef = Arc::new(Float32Array::from_iter_values(
             field.values.iter().map(|&v| v as f32),
         ));
-        let values = rerun::AnyValues::default()
-            .with_component_from_data(ComponentIdentifier::try_new(field.name).unwrap_or("value".into()), raw);
+        let values = rerun::AnyValues::default().with_component_from_data(
+            ComponentIdentifier::try_new(field.name).unwrap_or("value".into()),
+            raw,
+        );
         let path = format!("nodes/{}", field.name);
         let points: Box<dyn AsComponents> = if dim == 3 {
             Box::new(
@@ -273,9 +301,12 @@ fn log_frame(stream: &RecordingStream, frame: &Frame, radius: f32) -> rerun::Rec
             )
         } else {
             Box::new(
-                rerun::Points2D::new(frame.positions.chunks_exact(dim).map(|p| {
-                    [p[0] as f32, if dim == 2 { p[1] as f32 } else { 0.0 }]
-                }))
+                rerun::Points2D::new(
+                    frame
+                        .positions
+                        .chunks_exact(dim)
+                        .map(|p| [p[0] as f32, if dim == 2 { p[1] as f32 } else { 0.0 }]),
+                )
                 .with_colors(colors)
                 .with_radii([radius]),
             )
@@ -301,7 +332,11 @@ pub fn colormap(t: f64) -> rerun::Color {
         [170.0, 220.0, 50.0],
         [253.0, 231.0, 37.0],
     ];
-    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 };
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     let x = t * 8.0;
     let i = (x.floor() as usize).min(7);
     let f = x - i as f64;

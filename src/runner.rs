@@ -92,7 +92,7 @@ pub fn run(
             break;
         }
         let n = sim.steps_done();
-        if n % info.frame_every == 0 || n == total {
+        if n.is_multiple_of(info.frame_every) || n == total {
             emit(sim, sink, n == total);
         }
         progress(n, total);

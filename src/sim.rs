@@ -1,7 +1,6 @@
 //! The stepping simulation: owns the state, runs `step()` as named, timed stages and emits
 //! plain-data `Frame`s. It knows nothing of viewers or user interfaces.
 
-use std::sync::atomic::{AtomicU8, Ordering::Relaxed};
 use std::time::{Duration as WallDuration, Instant};
 
 use crate::family::{self, Families};
@@ -123,7 +122,7 @@ pub struct Simulation<const D: usize> {
     pub scene: Scene,
     pub lattice: Lattice<D>,
     pub families: Families,
-    pub intact: Vec<AtomicU8>,
+    pub intact: Vec<u8>,
     pub positions: Vec<[f64; D]>,
     pub velocities: Vec<[f64; D]>,
     pub accelerations: Vec<[f64; D]>,
@@ -142,6 +141,7 @@ pub struct Simulation<const D: usize> {
     broken: u64,
     timers: StageTimers,
     velocity_scale: f64,
+    uniform_volume: Option<f64>,
     last_frame: (u64, Instant),
 }
 
@@ -164,7 +164,7 @@ impl<const D: usize> Simulation<D> {
         }
         let radius = family::search_radius(scene.family_radius, scene.horizon, scene.spacing);
         let families = Families::build(&lattice.positions, radius);
-        let intact = standard::intact_bonds(families.bond_count());
+        let mut intact = standard::intact_bonds(families.bond_count());
         for (c, crack) in scene.precracks.iter().enumerate() {
             let mut cut = 0usize;
             for i in 0..lattice.len() {
@@ -172,7 +172,7 @@ impl<const D: usize> Simulation<D> {
                     let j = families.neighbors[b] as usize;
                     let (a, bpos) = (&lattice.positions[i], &lattice.positions[j]);
                     if family::crosses(crack, a, bpos) || family::crosses(crack, bpos, a) {
-                        intact[b].store(0, Relaxed);
+                        intact[b] = 0;
                         cut += 1;
                     }
                 }
@@ -201,11 +201,8 @@ impl<const D: usize> Simulation<D> {
             &standard::stiffness_sums(&lattice.volumes, &families, &law, &quadrature),
         );
         let masses: Vec<f64> = lattice.volumes.iter().map(|v| v * m.density).collect();
-        let lambda_max = stability::max_eigenvalue::<D>(
-            lattice.len(),
-            &masses,
-            POWER_ITERATIONS,
-            |u, out| {
+        let lambda_max =
+            stability::max_eigenvalue::<D>(lattice.len(), &masses, POWER_ITERATIONS, |u, out| {
                 standard::apply_linearized(
                     &lattice.positions,
                     &lattice.volumes,
@@ -217,8 +214,7 @@ impl<const D: usize> Simulation<D> {
                     u,
                     out,
                 )
-            },
-        );
+            });
         // The Rayleigh quotient approaches λ_max from below: keep a margin, and never go
         // below the guaranteed (3.8) bound.
         let stable_dt = (stability::verlet_limit(lambda_max * SPECTRAL_MARGIN)).max(gershgorin_dt);
@@ -245,6 +241,8 @@ impl<const D: usize> Simulation<D> {
         let frame_every = scene.output_every.unwrap_or((total_steps / 100).max(1));
 
         let n = lattice.len();
+        let v0 = lattice.volumes[0];
+        let uniform_volume = lattice.volumes.iter().all(|&v| v == v0).then_some(v0);
         let mut sim = Simulation {
             positions: lattice.positions.clone(),
             velocities: vec![[0.0; D]; n],
@@ -268,10 +266,12 @@ impl<const D: usize> Simulation<D> {
             broken: 0,
             timers: StageTimers::default(),
             velocity_scale: 1.0,
+            uniform_volume,
             last_frame: (0, Instant::now()),
         };
         sim.apply_initial_velocity();
-        sim.collect_boundary_layers().map_err(|(f, msg)| error(&f, msg))?;
+        sim.collect_boundary_layers()
+            .map_err(|(f, msg)| error(&f, msg))?;
         sim.apply_constraints();
         sim.velocity_scale = sim.initial_velocity_scale();
         sim.update_accelerations();
@@ -330,12 +330,18 @@ impl<const D: usize> Simulation<D> {
                 }
                 count += 1;
                 match layer.condition {
-                    Condition::Velocity => self
-                        .held_velocity
-                        .extend(layer.axes.iter().map(|&a| (i as u32, a as u8, layer.value[a]))),
-                    Condition::Displacement => self
-                        .held_displacement
-                        .extend(layer.axes.iter().map(|&a| (i as u32, a as u8, layer.value[a]))),
+                    Condition::Velocity => self.held_velocity.extend(
+                        layer
+                            .axes
+                            .iter()
+                            .map(|&a| (i as u32, a as u8, layer.value[a])),
+                    ),
+                    Condition::Displacement => self.held_displacement.extend(
+                        layer
+                            .axes
+                            .iter()
+                            .map(|&a| (i as u32, a as u8, layer.value[a])),
+                    ),
                     Condition::BodyForce => {
                         if self.body_force.is_empty() {
                             self.body_force = vec![[0.0; D]; self.lattice.len()];
@@ -349,7 +355,10 @@ impl<const D: usize> Simulation<D> {
             if count == 0 {
                 return Err((
                     format!("boundary[{l}]"),
-                    format!("layer `{}` selects no node; widen its region or thickness", layer.name),
+                    format!(
+                        "layer `{}` selects no node; widen its region or thickness",
+                        layer.name
+                    ),
                 ));
             }
         }
@@ -381,8 +390,9 @@ impl<const D: usize> Simulation<D> {
         self.broken += standard::pmb_forces(
             &self.positions,
             &self.lattice.volumes,
+            self.uniform_volume,
             &self.families,
-            &self.intact,
+            &mut self.intact,
             &self.law,
             &self.quadrature,
             &mut self.force,
@@ -479,7 +489,8 @@ impl<const D: usize> Stepper for Simulation<D> {
         let t1 = Instant::now();
         self.update_accelerations();
         let t2 = Instant::now();
-        let max_speed2 = verlet::half_kick_max_speed2(&mut self.velocities, &self.accelerations, dt);
+        let max_speed2 =
+            verlet::half_kick_max_speed2(&mut self.velocities, &self.accelerations, dt);
         let t3 = Instant::now();
         self.apply_constraints();
         let t4 = Instant::now();
@@ -489,7 +500,7 @@ impl<const D: usize> Stepper for Simulation<D> {
         self.timers.constraints += t4 - t3;
         self.step += 1;
         let max_speed = max_speed2.sqrt();
-        if !(max_speed * dt <= 0.5 * self.scene.spacing) {
+        if max_speed.is_nan() || max_speed * dt > 0.5 * self.scene.spacing {
             return Err(SimError::Unstable {
                 step: self.step,
                 time: self.time(),

@@ -44,14 +44,25 @@ fn check(name: &str, text: &str) -> (i32, String) {
     let path = temp(name);
     std::fs::write(&path, text).unwrap();
     let out = peridyn(&["check", path.to_str().unwrap()]);
-    (out.status.code().unwrap_or(-1), String::from_utf8_lossy(&out.stderr).to_string())
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    )
 }
 
 fn assert_clear_error(name: &str, text: &str, must_contain: &[&str]) {
     let (code, stderr) = check(name, text);
     assert_eq!(code, 2, "{name}: exit code {code}, stderr: {stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
-    assert_eq!(stderr.trim().lines().filter(|l| l.starts_with("error")).count(), 1, "{stderr}");
+    assert_eq!(
+        stderr
+            .trim()
+            .lines()
+            .filter(|l| l.starts_with("error"))
+            .count(),
+        1,
+        "{stderr}"
+    );
     assert!(stderr.contains(name), "error must name the file: {stderr}");
     for s in must_contain {
         assert!(stderr.contains(s), "{name}: `{s}` missing from: {stderr}");
@@ -66,20 +77,31 @@ fn good_preset_checks() {
 
 #[test]
 fn unknown_field_is_named_with_its_line() {
-    let text = GOOD.replace("density = \"8000 kg/m^3\"", "density = \"8000 kg/m^3\"\ncolour = \"red\"");
+    let text = GOOD.replace(
+        "density = \"8000 kg/m^3\"",
+        "density = \"8000 kg/m^3\"\ncolour = \"red\"",
+    );
     assert_clear_error("unknown.toml", &text, &["colour", ":11"]);
 }
 
 #[test]
 fn negative_horizon_is_refused() {
     let text = GOOD.replace("horizon = \"3 dx\"", "horizon = \"-3 dx\"");
-    assert_clear_error("negative.toml", &text, &["discretization.horizon", ":8", "> 0"]);
+    assert_clear_error(
+        "negative.toml",
+        &text,
+        &["discretization.horizon", ":8", "> 0"],
+    );
 }
 
 #[test]
 fn time_step_above_the_bound_is_refused() {
     let text = GOOD.replace("dt = \"0.5 stable\"", "dt = \"1 us\"");
-    assert_clear_error("dt.toml", &text, &["time.dt", "stable bound", "allow_unstable"]);
+    assert_clear_error(
+        "dt.toml",
+        &text,
+        &["time.dt", "stable bound", "allow_unstable"],
+    );
 }
 
 #[test]
@@ -115,8 +137,12 @@ fn every_builtin_preset_and_variant_checks() {
     let list = String::from_utf8_lossy(&out.stdout).to_string();
     for name in peridyn::scene::builtin::names() {
         assert!(list.contains(name));
-        let preset: peridyn::scene::Preset = toml::from_str(peridyn::scene::builtin::text(name).unwrap()).unwrap();
-        assert!(preset.variants.contains_key("small"), "{name} has no `small` variant");
+        let preset: peridyn::scene::Preset =
+            toml::from_str(peridyn::scene::builtin::text(name).unwrap()).unwrap();
+        assert!(
+            preset.variants.contains_key("small"),
+            "{name} has no `small` variant"
+        );
         for variant in preset.variants.keys() {
             // Validation only (no discretization): the paper variants are large.
             peridyn::scene::Scene::load(name, Some(variant)).unwrap_or_else(|e| panic!("{e}"));
@@ -126,7 +152,12 @@ fn every_builtin_preset_and_variant_checks() {
 
 fn steps_of(rec: &readback::Recording, entity: &str) -> Vec<i64> {
     rec.entity(entity)
-        .unwrap_or_else(|| panic!("no entity {entity}; have {:?}", rec.entities.keys().collect::<Vec<_>>()))
+        .unwrap_or_else(|| {
+            panic!(
+                "no entity {entity}; have {:?}",
+                rec.entities.keys().collect::<Vec<_>>()
+            )
+        })
         .points
         .keys()
         .copied()
@@ -136,8 +167,20 @@ fn steps_of(rec: &readback::Recording, entity: &str) -> Vec<i64> {
 #[test]
 fn kalthoff_winkler_small_recording_reads_back() {
     let path = temp("kw-small.rrd");
-    let out = peridyn(&["record", "kalthoff-winkler", "--variant", "small", "-o", path.to_str().unwrap(), "-q"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = peridyn(&[
+        "record",
+        "kalthoff-winkler",
+        "--variant",
+        "small",
+        "-o",
+        path.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("bond evaluations/s"), "{stdout}");
 
@@ -145,33 +188,66 @@ fn kalthoff_winkler_small_recording_reads_back() {
     let sim = peridyn::sim::build(&scene).unwrap();
     let info = sim.info();
     let rec = readback::read(&path).unwrap();
-    let mut expected: Vec<i64> = (0..=info.total_steps).step_by(info.frame_every as usize).map(|s| s as i64).collect();
+    let mut expected: Vec<i64> = (0..=info.total_steps)
+        .step_by(info.frame_every as usize)
+        .map(|s| s as i64)
+        .collect();
     if *expected.last().unwrap() != info.total_steps as i64 {
         expected.push(info.total_steps as i64);
     }
     for entity in ["/nodes/damage", "/nodes/velocity"] {
-        assert_eq!(steps_of(&rec, entity), expected, "{entity}: one frame per output step");
+        assert_eq!(
+            steps_of(&rec, entity),
+            expected,
+            "{entity}: one frame per output step"
+        );
         let content = rec.entity(entity).unwrap();
-        assert!(content.points.values().all(|&n| n == info.nodes), "one point per node");
-        assert_eq!(content.values.len(), expected.len(), "{entity}: raw values every frame");
+        assert!(
+            content.points.values().all(|&n| n == info.nodes),
+            "one point per node"
+        );
+        assert_eq!(
+            content.values.len(),
+            expected.len(),
+            "{entity}: raw values every frame"
+        );
         assert!(content.values.values().all(|v| v.len() == info.nodes));
     }
     let damage = &rec.entity("/nodes/damage").unwrap().values;
     let last = damage.values().last().unwrap();
     assert!(last.iter().all(|v| (0.0..=1.0).contains(v)));
-    assert!(last.iter().filter(|&&v| v > 0.35).count() > 100, "cracks grew");
-    for metric in ["/metrics/energy/kinetic", "/metrics/energy/strain", "/metrics/energy/total", "/metrics/momentum/x", "/metrics/bonds/broken", "/metrics/timing/step_wall_s"] {
-        let series = &rec.entity(metric).unwrap_or_else(|| panic!("no {metric}")).scalars;
+    assert!(
+        last.iter().filter(|&&v| v > 0.35).count() > 100,
+        "cracks grew"
+    );
+    for metric in [
+        "/metrics/energy/kinetic",
+        "/metrics/energy/strain",
+        "/metrics/energy/total",
+        "/metrics/momentum/x",
+        "/metrics/bonds/broken",
+        "/metrics/timing/step_wall_s",
+    ] {
+        let series = &rec
+            .entity(metric)
+            .unwrap_or_else(|| panic!("no {metric}"))
+            .scalars;
         assert_eq!(series.len(), expected.len(), "{metric}");
     }
     let preset = rec.entity("/scene/preset").expect("preset document");
-    assert!(preset.texts.iter().any(|t| t.contains(&scene.preset_text)), "preset text stored whole");
+    assert!(
+        preset.texts.iter().any(|t| t.contains(&scene.preset_text)),
+        "preset text stored whole"
+    );
 }
 
 fn wait_for(path: &Path, min_bytes: u64, timeout: Duration) {
     let start = Instant::now();
     while start.elapsed() < timeout {
-        if std::fs::metadata(path).map(|m| m.len() >= min_bytes).unwrap_or(false) {
+        if std::fs::metadata(path)
+            .map(|m| m.len() >= min_bytes)
+            .unwrap_or(false)
+        {
             return;
         }
         std::thread::sleep(Duration::from_millis(50));
@@ -183,18 +259,39 @@ fn wait_for(path: &Path, min_bytes: u64, timeout: Duration) {
 fn interrupted_recording_is_readable_and_complete_up_to_the_signal() {
     let path = temp("kw-interrupted.rrd");
     let child = Command::new(env!("CARGO_BIN_EXE_peridyn"))
-        .args(["record", "kalthoff-winkler", "--variant", "medium", "--every", "5", "-q", "-o", path.to_str().unwrap()])
+        .args([
+            "record",
+            "kalthoff-winkler",
+            "--variant",
+            "medium",
+            "--every",
+            "5",
+            "-q",
+            "-o",
+            path.to_str().unwrap(),
+        ])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
     wait_for(&path, 2_000_000, Duration::from_secs(120));
-    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    let status = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
     assert!(status.success());
     let out = child.wait_with_output().unwrap();
-    assert_eq!(out.status.code(), Some(130), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        out.status.code(),
+        Some(130),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let rec = readback::read(&path).unwrap();
-    let events = &rec.entity("/log/events").expect("the interruption is logged").texts;
+    let events = &rec
+        .entity("/log/events")
+        .expect("the interruption is logged")
+        .texts;
     let step: i64 = events
         .iter()
         .find_map(|t| t.strip_prefix("interrupted at step "))
@@ -202,5 +299,8 @@ fn interrupted_recording_is_readable_and_complete_up_to_the_signal() {
         .unwrap_or_else(|| panic!("{events:?}"));
     let steps = steps_of(&rec, "/nodes/damage");
     let expected: Vec<i64> = (0..=step).step_by(5).collect();
-    assert_eq!(steps, expected, "every frame logged before the signal is in the file");
+    assert_eq!(
+        steps, expected,
+        "every frame logged before the signal is in the file"
+    );
 }

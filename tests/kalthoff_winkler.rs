@@ -19,10 +19,17 @@ fn medium_crack_angles_are_between_60_and_75_degrees() {
     for (name, angle) in &summary.crack_angles {
         let angle = angle.unwrap_or_else(|| panic!("no {name} crack grew"));
         eprintln!("crack angle {name}: {angle:.2}°");
-        assert!((60.0..=75.0).contains(&angle), "{name} crack at {angle:.2}°");
+        assert!(
+            (60.0..=75.0).contains(&angle),
+            "{name} crack at {angle:.2}°"
+        );
     }
     // The two cracks are mirror images up to the lattice: their angles agree closely.
-    let angles: Vec<f64> = summary.crack_angles.iter().filter_map(|(_, a)| *a).collect();
+    let angles: Vec<f64> = summary
+        .crack_angles
+        .iter()
+        .filter_map(|(_, a)| *a)
+        .collect();
     assert_eq!(angles.len(), 2);
     assert!((angles[0] - angles[1]).abs() < 3.0, "{angles:?}");
 }

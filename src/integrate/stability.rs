@@ -67,7 +67,11 @@ mod tests {
         let lambda = max_eigenvalue::<1>(n, &vec![1.0; n], 400, |u, out| {
             for i in 0..n {
                 let left = if i > 0 { u[i][0] - u[i - 1][0] } else { 0.0 };
-                let right = if i + 1 < n { u[i][0] - u[i + 1][0] } else { 0.0 };
+                let right = if i + 1 < n {
+                    u[i][0] - u[i + 1][0]
+                } else {
+                    0.0
+                };
                 out[i][0] = k * (left + right);
             }
         });

@@ -33,7 +33,16 @@ pub fn half_kick_max_speed2<const D: usize>(
             }
             s2
         })
-        .reduce(|| 0.0, |a, b| if a.is_nan() || b.is_nan() { f64::NAN } else { a.max(b) })
+        .reduce(
+            || 0.0,
+            |a, b| {
+                if a.is_nan() || b.is_nan() {
+                    f64::NAN
+                } else {
+                    a.max(b)
+                }
+            },
+        )
 }
 
 /// y += Δt u̇.

@@ -5,7 +5,10 @@ const PRESETS: &[(&str, &str)] = &[
         "kalthoff-winkler",
         include_str!("../../presets/kalthoff-winkler.toml"),
     ),
-    ("pmb-block-3d", include_str!("../../presets/pmb-block-3d.toml")),
+    (
+        "pmb-block-3d",
+        include_str!("../../presets/pmb-block-3d.toml"),
+    ),
     (
         "vibrating-plate",
         include_str!("../../presets/vibrating-plate.toml"),

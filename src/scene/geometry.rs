@@ -12,9 +12,15 @@ pub type Point = Vec<Quantity>;
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum Shape {
     /// Axis-aligned box (interval in 1D, rectangle in 2D).
-    Box { min: Point, max: Point },
+    Box {
+        min: Point,
+        max: Point,
+    },
     /// Disc (2D) or ball (3D).
-    Sphere { center: Point, radius: Quantity },
+    Sphere {
+        center: Point,
+        radius: Quantity,
+    },
     /// 3D cylinder from `base` along `axis` (any direction) over `length`; in 2D a rectangle
     /// of width 2·radius around the segment.
     Cylinder {
@@ -134,9 +140,7 @@ impl Solid {
                 .iter()
                 .zip(min.iter().zip(max))
                 .all(|(v, (lo, hi))| *v >= lo - eps && *v <= hi + eps),
-            Solid::Sphere { center, radius } => {
-                dist2(x, center) <= (radius + eps) * (radius + eps)
-            }
+            Solid::Sphere { center, radius } => dist2(x, center) <= (radius + eps) * (radius + eps),
             Solid::Cylinder {
                 base,
                 unit_axis,
@@ -169,10 +173,20 @@ impl Solid {
                 radius,
                 length,
             } => {
-                let top: Vec<f64> = base.iter().zip(unit_axis).map(|(b, a)| b + a * length).collect();
+                let top: Vec<f64> = base
+                    .iter()
+                    .zip(unit_axis)
+                    .map(|(b, a)| b + a * length)
+                    .collect();
                 (
-                    base.iter().zip(&top).map(|(a, b)| a.min(*b) - radius).collect(),
-                    base.iter().zip(&top).map(|(a, b)| a.max(*b) + radius).collect(),
+                    base.iter()
+                        .zip(&top)
+                        .map(|(a, b)| a.min(*b) - radius)
+                        .collect(),
+                    base.iter()
+                        .zip(&top)
+                        .map(|(a, b)| a.max(*b) + radius)
+                        .collect(),
                 )
             }
             Solid::Union(parts) => {

@@ -25,7 +25,9 @@ impl<'de> Deserialize<'de> for Quantity {
         match Raw::deserialize(deserializer)? {
             Raw::Number(v) => Ok(Quantity(v)),
             Raw::Integer(v) => Ok(Quantity(v as f64)),
-            Raw::Text(text) => parse_quantity(&text).map(Quantity).map_err(serde::de::Error::custom),
+            Raw::Text(text) => parse_quantity(&text)
+                .map(Quantity)
+                .map_err(serde::de::Error::custom),
         }
     }
 }
@@ -225,10 +227,9 @@ impl<'de> Deserialize<'de> for Measure {
 pub fn parse_measure(text: &str) -> Result<Measure, String> {
     for relative in [Relative::Spacing, Relative::StableStep, Relative::Steps] {
         if let Some(number) = text.trim().strip_suffix(relative.unit()) {
-            let value = number
-                .trim()
-                .parse()
-                .map_err(|_| format!("`{text}` is not a number followed by `{}`", relative.unit()))?;
+            let value = number.trim().parse().map_err(|_| {
+                format!("`{text}` is not a number followed by `{}`", relative.unit())
+            })?;
             return Ok(Measure::Relative(value, relative));
         }
     }
@@ -241,9 +242,18 @@ mod measure_tests {
 
     #[test]
     fn relative_and_absolute_measures() {
-        assert_eq!(parse_measure("8 dx").unwrap(), Measure::Relative(8.0, Relative::Spacing));
-        assert_eq!(parse_measure("0.5 stable").unwrap(), Measure::Relative(0.5, Relative::StableStep));
-        assert_eq!(parse_measure("2000 steps").unwrap(), Measure::Relative(2000.0, Relative::Steps));
+        assert_eq!(
+            parse_measure("8 dx").unwrap(),
+            Measure::Relative(8.0, Relative::Spacing)
+        );
+        assert_eq!(
+            parse_measure("0.5 stable").unwrap(),
+            Measure::Relative(0.5, Relative::StableStep)
+        );
+        assert_eq!(
+            parse_measure("2000 steps").unwrap(),
+            Measure::Relative(2000.0, Relative::Steps)
+        );
         assert_eq!(parse_measure("2 ns").unwrap(), Measure::Si(2e-9));
         assert!(parse_measure("x steps").is_err());
     }

@@ -2,8 +2,8 @@
 
 use super::error::{ErrorContext, SceneError};
 use super::geometry::{Point, si};
-use super::units::{Measure, Relative};
 use super::schema::{BoundaryLayer, Precrack, Preset, VelocityField};
+use super::units::{Measure, Relative};
 use super::*;
 use crate::model::pmb;
 
@@ -32,7 +32,10 @@ pub(super) fn validate(
         Measure::Relative(_, r) => {
             return Err(ctx.error(
                 "discretization.horizon",
-                format!("`{}` is not a length: give e.g. \"2 mm\" or \"4 dx\"", r.unit()),
+                format!(
+                    "`{}` is not a length: give e.g. \"2 mm\" or \"4 dx\"",
+                    r.unit()
+                ),
             ));
         }
     };
@@ -238,7 +241,11 @@ pub(crate) fn axis_index(name: &str, dim: usize, path: &str) -> Result<usize, St
         "x" => 0,
         "y" => 1,
         "z" => 2,
-        _ => return Err(format!("{path}: must be \"x\", \"y\" or \"z\", got \"{name}\"")),
+        _ => {
+            return Err(format!(
+                "{path}: must be \"x\", \"y\" or \"z\", got \"{name}\""
+            ));
+        }
     };
     if i >= dim {
         return Err(format!("{path}: axis \"{name}\" does not exist in {dim}D"));
@@ -248,7 +255,10 @@ pub(crate) fn axis_index(name: &str, dim: usize, path: &str) -> Result<usize, St
 
 fn boundary_layer(b: &BoundaryLayer, dim: usize, path: &str) -> Result<BoundarySpec, String> {
     let (condition, value) = match (&b.velocity, &b.displacement, &b.body_force) {
-        (Some(v), None, None) => (Condition::Velocity, point(v, dim, &format!("{path}.velocity"))?),
+        (Some(v), None, None) => (
+            Condition::Velocity,
+            point(v, dim, &format!("{path}.velocity"))?,
+        ),
         (None, Some(u), None) => (
             Condition::Displacement,
             point(u, dim, &format!("{path}.displacement"))?,
@@ -285,7 +295,11 @@ fn boundary_layer(b: &BoundaryLayer, dim: usize, path: &str) -> Result<BoundaryS
             if t.si() <= 0.0 {
                 return Err(format!("{path}.thickness: must be > 0, got {}", t.si()));
             }
-            Some((axis_index(axis, dim, &format!("{path}.face"))?, upper, t.si()))
+            Some((
+                axis_index(axis, dim, &format!("{path}.face"))?,
+                upper,
+                t.si(),
+            ))
         }
         (None, None) => None,
         (Some(_), None) => return Err(format!("{path}.thickness: a `face` needs a `thickness`")),
@@ -297,7 +311,9 @@ fn boundary_layer(b: &BoundaryLayer, dim: usize, path: &str) -> Result<BoundaryS
         .map(|r| r.to_solid(dim, &format!("{path}.region")))
         .transpose()?;
     if region.is_none() && face.is_none() {
-        return Err(format!("{path}.region: give a `region`, a `face` + `thickness`, or both"));
+        return Err(format!(
+            "{path}.region: give a `region`, a `face` + `thickness`, or both"
+        ));
     }
     Ok(BoundarySpec {
         name: if b.name.is_empty() {
@@ -353,7 +369,10 @@ fn time_spec(p: &Preset, ctx: &ErrorContext) -> Result<TimeSpec, SceneError> {
         Measure::Relative(_, r) => {
             return Err(ctx.error(
                 "time.dt",
-                format!("`{}` is not a time step: give e.g. \"2 ns\" or \"0.5 stable\"", r.unit()),
+                format!(
+                    "`{}` is not a time step: give e.g. \"2 ns\" or \"0.5 stable\"",
+                    r.unit()
+                ),
             ));
         }
     };
@@ -379,7 +398,10 @@ fn time_spec(p: &Preset, ctx: &ErrorContext) -> Result<TimeSpec, SceneError> {
         Measure::Relative(_, r) => {
             return Err(ctx.error(
                 "time.end",
-                format!("`{}` is not a duration: give e.g. \"87 us\" or \"2000 steps\"", r.unit()),
+                format!(
+                    "`{}` is not a duration: give e.g. \"87 us\" or \"2000 steps\"",
+                    r.unit()
+                ),
             ));
         }
     };
