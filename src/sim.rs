@@ -127,6 +127,7 @@ pub struct Simulation<const D: usize> {
     pub velocities: Vec<[f64; D]>,
     pub accelerations: Vec<[f64; D]>,
     force: Vec<[f64; D]>,
+    energy_density: Vec<f64>,
     body_force: Vec<[f64; D]>,
     held_velocity: Vec<Held>,
     held_displacement: Vec<Held>,
@@ -248,6 +249,7 @@ impl<const D: usize> Simulation<D> {
             velocities: vec![[0.0; D]; n],
             accelerations: vec![[0.0; D]; n],
             force: vec![[0.0; D]; n],
+            energy_density: vec![0.0; n],
             body_force: Vec::new(),
             held_velocity: Vec::new(),
             held_displacement: Vec::new(),
@@ -396,6 +398,7 @@ impl<const D: usize> Simulation<D> {
             &self.law,
             &self.quadrature,
             &mut self.force,
+            &mut self.energy_density,
         );
         let inv_rho = 1.0 / self.scene.material.density;
         let body = &self.body_force;
@@ -520,7 +523,13 @@ impl<const D: usize> Stepper for Simulation<D> {
             .map(|v| v.iter().map(|x| x * x).sum::<f64>().sqrt())
             .collect();
         let (kinetic, momentum) = self.kinetic_energy_and_momentum();
-        let strain = self.strain_energy();
+        // W_i from the last force evaluation, at the current positions.
+        let strain: f64 = self
+            .energy_density
+            .iter()
+            .zip(&self.lattice.volumes)
+            .map(|(w, v)| w * v)
+            .sum();
         let now = Instant::now();
         let (last_step, last_time) = self.last_frame;
         let steps_since = self.step.saturating_sub(last_step);

@@ -35,8 +35,9 @@ pub fn intact_bonds(count: usize) -> Vec<u8> {
     vec![1; count]
 }
 
-/// Force density on every node (N/m³), breaking bonds whose stretch reaches s0. Returns the
-/// number of directed bonds broken in this call. `uniform_volume` (all V_j equal) saves a
+/// Force density on every node (N/m³), breaking bonds whose stretch reaches s0, and each
+/// node's strain-energy density W_i over the bonds still intact. Returns the number of
+/// directed bonds broken in this call. `uniform_volume` (all V_j equal) saves a
 /// gather per bond.
 #[allow(clippy::too_many_arguments)]
 pub fn pmb_forces<const D: usize>(
@@ -48,6 +49,7 @@ pub fn pmb_forces<const D: usize>(
     law: &PmbLaw,
     quadrature: &Quadrature,
     force: &mut [[f64; D]],
+    energy_density: &mut [f64],
 ) -> u64 {
     assert_eq!(positions.len(), families.node_count());
     assert_eq!(intact.len(), families.bond_count());
@@ -68,12 +70,20 @@ pub fn pmb_forces<const D: usize>(
                     intact,
                     law,
                     force,
+                    energy_density,
                     |l| $weight(l) * v,
                     |_| 1.0,
                 ),
-                None => pmb_rows(positions, families, intact, law, force, $weight, |j| {
-                    volumes[j]
-                }),
+                None => pmb_rows(
+                    positions,
+                    families,
+                    intact,
+                    law,
+                    force,
+                    energy_density,
+                    $weight,
+                    |j| volumes[j],
+                ),
             }
         };
     }
@@ -92,79 +102,88 @@ const ROWS_PER_TASK: usize = 512;
 /// Node ranges are split recursively (no allocation) so each task owns its rows of `force`
 /// and of the bond states.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn pmb_rows<const D: usize>(
     positions: &[[f64; D]],
     families: &Families,
     intact: &mut [u8],
     law: &PmbLaw,
     force: &mut [[f64; D]],
+    energy_density: &mut [f64],
     weight: impl Fn(f64) -> f64 + Sync,
     volume: impl Fn(usize) -> f64 + Sync,
 ) -> u64 {
-    let kernel = |first: usize, force: &mut [[f64; D]], state: &mut [u8]| -> u64 {
-        let s0 = law.critical_stretch;
-        let base = families.offsets[first];
-        let mut broken = 0u64;
-        for (row, f_i) in force.iter_mut().enumerate() {
-            let i = first + row;
-            let y_i = positions[i];
-            let range = families.range(i);
-            let neighbors = &families.neighbors[range.clone()];
-            let lengths = &families.lengths[range.clone()];
-            let state = &mut state[range.start - base..range.end - base];
-            let mut acc = [0.0; D];
-            for ((&j, &length), mu) in neighbors.iter().zip(lengths).zip(state.iter_mut()) {
-                if *mu == 0 {
-                    continue;
+    let kernel =
+        |first: usize, force: &mut [[f64; D]], energy: &mut [f64], state: &mut [u8]| -> u64 {
+            let s0 = law.critical_stretch;
+            let base = families.offsets[first];
+            let mut broken = 0u64;
+            for (row, (f_i, w_i)) in force.iter_mut().zip(energy.iter_mut()).enumerate() {
+                let i = first + row;
+                let y_i = positions[i];
+                let range = families.range(i);
+                let neighbors = &families.neighbors[range.clone()];
+                let lengths = &families.lengths[range.clone()];
+                let state = &mut state[range.start - base..range.end - base];
+                let mut acc = [0.0; D];
+                let mut w = 0.0;
+                for ((&j, &length), mu) in neighbors.iter().zip(lengths).zip(state.iter_mut()) {
+                    if *mu == 0 {
+                        continue;
+                    }
+                    let j = j as usize;
+                    let y_j = positions[j];
+                    let mut d = [0.0; D];
+                    let mut r2 = 0.0;
+                    for k in 0..D {
+                        d[k] = y_j[k] - y_i[k];
+                        r2 += d[k] * d[k];
+                    }
+                    let r = r2.sqrt();
+                    let extension = r - length;
+                    if extension >= s0 * length {
+                        *mu = 0;
+                        broken += 1;
+                        continue;
+                    }
+                    // ω c β V_j · s · (y_j − y_i)/‖y_j − y_i‖ with s = extension / length.
+                    let scale = weight(length) * volume(j) * extension / (length * r);
+                    // Strain energy w β V_j = ½ ω c s² ‖ξ‖ β V_j (2.27), with the force.
+                    w += scale * extension * r;
+                    for k in 0..D {
+                        acc[k] += scale * d[k];
+                    }
                 }
-                let j = j as usize;
-                let y_j = positions[j];
-                let mut d = [0.0; D];
-                let mut r2 = 0.0;
-                for k in 0..D {
-                    d[k] = y_j[k] - y_i[k];
-                    r2 += d[k] * d[k];
-                }
-                let r = r2.sqrt();
-                let extension = r - length;
-                if extension >= s0 * length {
-                    *mu = 0;
-                    broken += 1;
-                    continue;
-                }
-                // ω c β V_j · s · (y_j − y_i)/‖y_j − y_i‖ with s = extension / length.
-                let scale = weight(length) * volume(j) * extension / (length * r);
-                for k in 0..D {
-                    acc[k] += scale * d[k];
-                }
+                *f_i = acc;
+                *w_i = 0.25 * w;
             }
-            *f_i = acc;
-        }
-        broken
-    };
-    split_rows(families, 0, force, intact, &kernel)
+            broken
+        };
+    split_rows(families, 0, force, energy_density, intact, &kernel)
 }
 
 fn split_rows<const D: usize, K>(
     families: &Families,
     first: usize,
     force: &mut [[f64; D]],
+    energy: &mut [f64],
     state: &mut [u8],
     kernel: &K,
 ) -> u64
 where
-    K: Fn(usize, &mut [[f64; D]], &mut [u8]) -> u64 + Sync,
+    K: Fn(usize, &mut [[f64; D]], &mut [f64], &mut [u8]) -> u64 + Sync,
 {
     if force.len() <= ROWS_PER_TASK {
-        return kernel(first, force, state);
+        return kernel(first, force, energy, state);
     }
     let mid = force.len() / 2;
     let (force_a, force_b) = force.split_at_mut(mid);
+    let (energy_a, energy_b) = energy.split_at_mut(mid);
     let cut = families.offsets[first + mid] - families.offsets[first];
     let (state_a, state_b) = state.split_at_mut(cut);
     let (a, b) = rayon::join(
-        || split_rows(families, first, force_a, state_a, kernel),
-        || split_rows(families, first + mid, force_b, state_b, kernel),
+        || split_rows(families, first, force_a, energy_a, state_a, kernel),
+        || split_rows(families, first + mid, force_b, energy_b, state_b, kernel),
     );
     a + b
 }
