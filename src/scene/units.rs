@@ -3,6 +3,15 @@
 
 use serde::{Deserialize, Deserializer};
 
+/// A preset value as written: a number or a string with a unit.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum Raw {
+    Number(f64),
+    Integer(i64),
+    Text(String),
+}
+
 /// A scalar already converted to SI units.
 #[derive(Debug, Clone, Copy, PartialEq, PartialOrd)]
 pub struct Quantity(pub f64);
@@ -15,13 +24,6 @@ impl Quantity {
 
 impl<'de> Deserialize<'de> for Quantity {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        #[derive(Deserialize)]
-        #[serde(untagged)]
-        enum Raw {
-            Number(f64),
-            Integer(i64),
-            Text(String),
-        }
         match Raw::deserialize(deserializer)? {
             Raw::Number(v) => Ok(Quantity(v)),
             Raw::Integer(v) => Ok(Quantity(v as f64)),
@@ -209,13 +211,6 @@ pub enum Measure {
 
 impl<'de> Deserialize<'de> for Measure {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        #[derive(Deserialize)]
-        #[serde(untagged)]
-        enum Raw {
-            Number(f64),
-            Integer(i64),
-            Text(String),
-        }
         match Raw::deserialize(deserializer)? {
             Raw::Number(v) => Ok(Measure::Si(v)),
             Raw::Integer(v) => Ok(Measure::Si(v as f64)),
