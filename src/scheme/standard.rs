@@ -51,6 +51,32 @@ pub fn pmb_forces<const D: usize>(
     force: &mut [[f64; D]],
     energy_density: &mut [f64],
 ) -> u64 {
+    pmb_forces_portable(
+        positions,
+        volumes,
+        uniform_volume,
+        families,
+        intact,
+        law,
+        quadrature,
+        force,
+        energy_density,
+    )
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn pmb_forces_portable<const D: usize>(
+    positions: &[[f64; D]],
+    volumes: &[f64],
+    uniform_volume: Option<f64>,
+    families: &Families,
+    intact: &mut [u8],
+    law: &PmbLaw,
+    quadrature: &Quadrature,
+    force: &mut [[f64; D]],
+    energy_density: &mut [f64],
+) -> u64 {
     assert_eq!(positions.len(), families.node_count());
     assert_eq!(intact.len(), families.bond_count());
     let c = law.micromodulus;
@@ -71,7 +97,7 @@ pub fn pmb_forces<const D: usize>(
                     law,
                     force,
                     energy_density,
-                    |l| $weight(l) * v,
+                    move |l| $weight(l) * v,
                     |_| 1.0,
                 ),
                 None => pmb_rows(
@@ -88,10 +114,12 @@ pub fn pmb_forces<const D: usize>(
         };
     }
     match (law.influence, quadrature.volume_correction) {
-        (Influence::Constant, true) => with_volume!(|l: f64| c * beta(l)),
-        (Influence::Constant, false) => with_volume!(|_l: f64| c),
-        (Influence::Linear, true) => with_volume!(|l: f64| c * (1.0 - l / h).max(0.0) * beta(l)),
-        (Influence::Linear, false) => with_volume!(|l: f64| c * (1.0 - l / h).max(0.0)),
+        (Influence::Constant, true) => with_volume!(move |l: f64| c * beta(l)),
+        (Influence::Constant, false) => with_volume!(move |_l: f64| c),
+        (Influence::Linear, true) => {
+            with_volume!(move |l: f64| c * (1.0 - l / h).max(0.0) * beta(l))
+        }
+        (Influence::Linear, false) => with_volume!(move |l: f64| c * (1.0 - l / h).max(0.0)),
     }
 }
 
@@ -113,53 +141,189 @@ fn pmb_rows<const D: usize>(
     weight: impl Fn(f64) -> f64 + Sync,
     volume: impl Fn(usize) -> f64 + Sync,
 ) -> u64 {
+    let s0 = law.critical_stretch;
+    #[cfg(target_arch = "x86_64")]
+    let avx2 = std::arch::is_x86_feature_detected!("avx2");
     let kernel =
         |first: usize, force: &mut [[f64; D]], energy: &mut [f64], state: &mut [u8]| -> u64 {
-            let s0 = law.critical_stretch;
-            let base = families.offsets[first];
-            let mut broken = 0u64;
-            for (row, (f_i, w_i)) in force.iter_mut().zip(energy.iter_mut()).enumerate() {
-                let i = first + row;
-                let y_i = positions[i];
-                let range = families.range(i);
-                let neighbors = &families.neighbors[range.clone()];
-                let lengths = &families.lengths[range.clone()];
-                let state = &mut state[range.start - base..range.end - base];
-                let mut acc = [0.0; D];
-                let mut w = 0.0;
-                for ((&j, &length), mu) in neighbors.iter().zip(lengths).zip(state.iter_mut()) {
-                    if *mu == 0 {
-                        continue;
-                    }
-                    let j = j as usize;
-                    let y_j = positions[j];
-                    let mut d = [0.0; D];
-                    let mut r2 = 0.0;
-                    for k in 0..D {
-                        d[k] = y_j[k] - y_i[k];
-                        r2 += d[k] * d[k];
-                    }
-                    let r = r2.sqrt();
-                    let extension = r - length;
-                    if extension >= s0 * length {
-                        *mu = 0;
-                        broken += 1;
-                        continue;
-                    }
-                    // ω c β V_j · s · (y_j − y_i)/‖y_j − y_i‖ with s = extension / length.
-                    let scale = weight(length) * volume(j) * extension / (length * r);
-                    // Strain energy w β V_j = ½ ω c s² ‖ξ‖ β V_j (2.27), with the force.
-                    w += scale * extension * r;
-                    for k in 0..D {
-                        acc[k] += scale * d[k];
-                    }
-                }
-                *f_i = acc;
-                *w_i = 0.25 * w;
+            let rows = Rows {
+                positions,
+                families,
+                first,
+                s0,
+            };
+            #[cfg(target_arch = "x86_64")]
+            if avx2 {
+                // SAFETY: the CPU supports AVX2 (detected above).
+                return unsafe { rows_avx2(&rows, force, energy, state, &weight, &volume) };
             }
-            broken
+            rows_portable(&rows, force, energy, state, &weight, &volume)
         };
     split_rows(families, 0, force, energy_density, intact, &kernel)
+}
+
+/// A block of consecutive rows of the force loop.
+struct Rows<'a, const D: usize> {
+    positions: &'a [[f64; D]],
+    families: &'a Families,
+    first: usize,
+    s0: f64,
+}
+
+#[inline(always)]
+fn rows_portable<const D: usize>(
+    rows: &Rows<D>,
+    force: &mut [[f64; D]],
+    energy: &mut [f64],
+    state: &mut [u8],
+    weight: &impl Fn(f64) -> f64,
+    volume: &impl Fn(usize) -> f64,
+) -> u64 {
+    let families = rows.families;
+    let base = families.offsets[rows.first];
+    let mut broken = 0u64;
+    for (row, (f_i, w_i)) in force.iter_mut().zip(energy.iter_mut()).enumerate() {
+        let i = rows.first + row;
+        let range = families.range(i);
+        let (acc, w, newly_broken) = pmb_row(
+            rows.positions[i],
+            &families.neighbors[range.clone()],
+            &families.lengths[range.clone()],
+            &mut state[range.start - base..range.end - base],
+            rows.positions,
+            rows.s0,
+            weight,
+            volume,
+        );
+        broken += newly_broken;
+        *f_i = acc;
+        *w_i = 0.25 * w;
+    }
+    broken
+}
+
+/// `rows_portable` compiled for AVX2, where the lane loops become 4-wide. No FMA is enabled,
+/// so the results are bit-identical to the portable code.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2")]
+fn rows_avx2<const D: usize>(
+    rows: &Rows<D>,
+    force: &mut [[f64; D]],
+    energy: &mut [f64],
+    state: &mut [u8],
+    weight: &impl Fn(f64) -> f64,
+    volume: &impl Fn(usize) -> f64,
+) -> u64 {
+    rows_portable(rows, force, energy, state, weight, volume)
+}
+
+/// Bonds evaluated together: the lane loops below are written so the compiler turns them
+/// into SIMD arithmetic (two or four square roots and divisions per instruction).
+const LANES: usize = 4;
+
+/// One node's row: (force density, 4·W_i, bonds broken now). Blocks of `LANES` bonds are
+/// evaluated branch-free (a broken bond weighs 0), the remainder one by one.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn pmb_row<const D: usize>(
+    y_i: [f64; D],
+    neighbors: &[u32],
+    lengths: &[f64],
+    state: &mut [u8],
+    positions: &[[f64; D]],
+    s0: f64,
+    weight: &impl Fn(f64) -> f64,
+    volume: &impl Fn(usize) -> f64,
+) -> ([f64; D], f64, u64) {
+    let mut acc_lanes = [[0.0; LANES]; D];
+    let mut w_lanes = [0.0; LANES];
+    let mut broken = 0u64;
+    let blocked = neighbors.len() / LANES * LANES;
+    for ((nb, ln), st) in neighbors[..blocked]
+        .chunks_exact(LANES)
+        .zip(lengths[..blocked].chunks_exact(LANES))
+        .zip(state[..blocked].chunks_exact_mut(LANES))
+    {
+        let mut d = [[0.0; LANES]; D];
+        let mut vol = [0.0; LANES];
+        for l in 0..LANES {
+            let j = nb[l] as usize;
+            let p = positions[j];
+            for k in 0..D {
+                d[k][l] = p[k] - y_i[k];
+            }
+            vol[l] = volume(j);
+        }
+        let mut r2 = [0.0; LANES];
+        for d_k in &d {
+            for l in 0..LANES {
+                r2[l] += d_k[l] * d_k[l];
+            }
+        }
+        let mut scale = [0.0; LANES];
+        let mut breaks = false;
+        let mut keep = [false; LANES];
+        for l in 0..LANES {
+            let r = r2[l].sqrt();
+            let extension = r - ln[l];
+            let alive = st[l] != 0;
+            keep[l] = alive && extension < s0 * ln[l];
+            breaks |= alive != keep[l];
+            // ω c β V_j · s · (y_j − y_i)/‖y_j − y_i‖ with s = extension / length.
+            let s = weight(ln[l]) * vol[l] * extension / (ln[l] * r);
+            scale[l] = if keep[l] { s } else { 0.0 };
+            // Strain energy w β V_j = ½ ω c s² ‖ξ‖ β V_j (2.27), with the force.
+            w_lanes[l] += scale[l] * extension * r;
+        }
+        if breaks {
+            for l in 0..LANES {
+                if st[l] != 0 && !keep[l] {
+                    st[l] = 0;
+                    broken += 1;
+                }
+            }
+        }
+        for k in 0..D {
+            for l in 0..LANES {
+                acc_lanes[k][l] += scale[l] * d[k][l];
+            }
+        }
+    }
+    let mut acc = [0.0; D];
+    for k in 0..D {
+        acc[k] = acc_lanes[k].iter().sum();
+    }
+    let mut w: f64 = w_lanes.iter().sum();
+    for ((&j, &length), mu) in neighbors[blocked..]
+        .iter()
+        .zip(&lengths[blocked..])
+        .zip(&mut state[blocked..])
+    {
+        if *mu == 0 {
+            continue;
+        }
+        let j = j as usize;
+        let y_j = positions[j];
+        let mut d = [0.0; D];
+        let mut r2 = 0.0;
+        for k in 0..D {
+            d[k] = y_j[k] - y_i[k];
+            r2 += d[k] * d[k];
+        }
+        let r = r2.sqrt();
+        let extension = r - length;
+        if extension >= s0 * length {
+            *mu = 0;
+            broken += 1;
+            continue;
+        }
+        let scale = weight(length) * volume(j) * extension / (length * r);
+        w += scale * extension * r;
+        for k in 0..D {
+            acc[k] += scale * d[k];
+        }
+    }
+    (acc, w, broken)
 }
 
 fn split_rows<const D: usize, K>(
@@ -322,4 +486,120 @@ pub fn apply_linearized<const D: usize>(
             }
             *o = acc;
         });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::Lattice;
+    use crate::scene::Solid;
+
+    /// The AVX2 build of the force loop, the portable one and any thread count give the same
+    /// bits, breaking included.
+    #[test]
+    fn force_loop_is_bit_identical_across_builds_and_threads() {
+        let cube = Solid::Box {
+            min: vec![0.0; 3],
+            max: vec![12.0; 3],
+        };
+        let lattice = Lattice::<3>::build(&cube, 1.0, 0.2, 5);
+        let families = Families::build(&lattice.positions, 3.0);
+        let law = PmbLaw {
+            micromodulus: 1.0,
+            critical_stretch: 0.01,
+            influence: Influence::Constant,
+            horizon: 3.0,
+        };
+        let positions: Vec<[f64; 3]> = lattice
+            .positions
+            .iter()
+            .map(|x| {
+                [
+                    x[0] * (1.0 + 0.012 * (x[1] / 12.0)),
+                    x[1],
+                    x[2] + 1e-3 * x[0],
+                ]
+            })
+            .collect();
+        let quadrature = Quadrature {
+            spacing: 1.0,
+            horizon: 3.0,
+            volume_correction: true,
+        };
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut intact = intact_bonds(families.bond_count());
+                let mut force = vec![[0.0; 3]; lattice.len()];
+                let mut energy = vec![0.0; lattice.len()];
+                let broken = pmb_forces(
+                    &positions,
+                    &lattice.volumes,
+                    Some(1.0),
+                    &families,
+                    &mut intact,
+                    &law,
+                    &quadrature,
+                    &mut force,
+                    &mut energy,
+                );
+                (broken, intact, force, energy)
+            })
+        };
+        let (broken, intact, force, energy) = run(1);
+        assert!(broken > 0 && broken < families.bond_count() as u64);
+        assert_eq!(
+            run(2),
+            (broken, intact.clone(), force.clone(), energy.clone())
+        );
+
+        let rows = Rows {
+            positions: &positions,
+            families: &families,
+            first: 0,
+            s0: law.critical_stretch,
+        };
+        let weight = |l: f64| quadrature.beta(l);
+        let volume = |_j: usize| 1.0;
+        let mut portable = (
+            intact_bonds(families.bond_count()),
+            vec![[0.0; 3]; lattice.len()],
+            vec![0.0; lattice.len()],
+        );
+        let b1 = rows_portable(
+            &rows,
+            &mut portable.1,
+            &mut portable.2,
+            &mut portable.0,
+            &weight,
+            &volume,
+        );
+        assert_eq!(b1, broken);
+        assert_eq!(portable.0, intact);
+        assert_eq!(portable.1, force);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            let mut wide = (
+                intact_bonds(families.bond_count()),
+                vec![[0.0; 3]; lattice.len()],
+                vec![0.0; lattice.len()],
+            );
+            // SAFETY: AVX2 support was detected just above.
+            let b2 = unsafe {
+                rows_avx2(
+                    &rows,
+                    &mut wide.1,
+                    &mut wide.2,
+                    &mut wide.0,
+                    &weight,
+                    &volume,
+                )
+            };
+            assert_eq!(b2, b1);
+            assert_eq!(wide, portable);
+        }
+    }
 }
