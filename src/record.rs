@@ -340,8 +340,6 @@ pub fn colormap(t: f64) -> rerun::Color {
     let x = t * 8.0;
     let i = (x.floor() as usize).min(7);
     let f = x - i as f64;
-    let c: Vec<u8> = (0..3)
-        .map(|k| (VIRIDIS[i][k] * (1.0 - f) + VIRIDIS[i + 1][k] * f).round() as u8)
-        .collect();
-    rerun::Color::from_rgb(c[0], c[1], c[2])
+    let channel = |k: usize| (VIRIDIS[i][k] * (1.0 - f) + VIRIDIS[i + 1][k] * f).round() as u8;
+    rerun::Color::from_rgb(channel(0), channel(1), channel(2))
 }

@@ -11,7 +11,7 @@ use crate::metrics;
 use crate::model::pmb::PmbLaw;
 use crate::scene::error::locate_field;
 use crate::scene::{Condition, Duration, InitialVelocity, Scene, SceneError, StepSize};
-use crate::scheme::standard::{self, Quadrature};
+use crate::scheme::standard::{self, NodeTerms, Quadrature};
 
 /// A run that had to stop.
 #[derive(Debug, Clone, PartialEq)]
@@ -126,8 +126,9 @@ pub struct Simulation<const D: usize> {
     pub positions: Vec<[f64; D]>,
     pub velocities: Vec<[f64; D]>,
     pub accelerations: Vec<[f64; D]>,
-    force: Vec<[f64; D]>,
-    energy_density: Vec<f64>,
+    terms: Vec<NodeTerms<D>>,
+    /// Σ β V'_j over each node's family: the damage denominator (see `damage_weights`).
+    family_weight: Vec<f64>,
     body_force: Vec<[f64; D]>,
     held_velocity: Vec<Held>,
     held_displacement: Vec<Held>,
@@ -244,12 +245,26 @@ impl<const D: usize> Simulation<D> {
         let n = lattice.len();
         let v0 = lattice.volumes[0];
         let uniform_volume = lattice.volumes.iter().all(|&v| v == v0).then_some(v0);
+        let (family_weight, precracked) = standard::damage_weights(
+            &lattice.volumes,
+            uniform_volume,
+            &families,
+            &intact,
+            &quadrature,
+        );
+        let terms = precracked
+            .iter()
+            .map(|&w| NodeTerms {
+                broken_weight: w,
+                ..NodeTerms::default()
+            })
+            .collect();
         let mut sim = Simulation {
             positions: lattice.positions.clone(),
             velocities: vec![[0.0; D]; n],
             accelerations: vec![[0.0; D]; n],
-            force: vec![[0.0; D]; n],
-            energy_density: vec![0.0; n],
+            terms,
+            family_weight,
             body_force: Vec::new(),
             held_velocity: Vec::new(),
             held_displacement: Vec::new(),
@@ -397,20 +412,36 @@ impl<const D: usize> Simulation<D> {
             &mut self.intact,
             &self.law,
             &self.quadrature,
-            &mut self.force,
-            &mut self.energy_density,
+            &mut self.terms,
         );
         let inv_rho = 1.0 / self.scene.material.density;
         let body = &self.body_force;
-        for (i, (a, f)) in self.accelerations.iter_mut().zip(&self.force).enumerate() {
+        for (i, (a, t)) in self.accelerations.iter_mut().zip(&self.terms).enumerate() {
             for k in 0..D {
                 let b = if body.is_empty() { 0.0 } else { body[i][k] };
-                a[k] = (f[k] + b) * inv_rho;
+                a[k] = (t.force[k] + b) * inv_rho;
             }
         }
     }
 
+    /// Damage φ_i (2.36), kept up to date by the force loop as bonds break.
     pub fn damage(&self) -> Vec<f64> {
+        self.terms
+            .iter()
+            .zip(&self.family_weight)
+            .map(|(t, &all)| {
+                if all > 0.0 {
+                    t.broken_weight / all
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+
+    /// Damage recomputed from the bond states in one pass over all bonds (a check of
+    /// `damage`).
+    pub fn damage_from_bonds(&self) -> Vec<f64> {
         standard::damage(
             &self.lattice.volumes,
             &self.families,
@@ -452,8 +483,8 @@ impl<const D: usize> Simulation<D> {
     }
 
     /// Force density on each node at the current positions (N/m³), without body forces.
-    pub fn force_density(&self) -> &[[f64; D]] {
-        &self.force
+    pub fn force_density(&self) -> Vec<[f64; D]> {
+        self.terms.iter().map(|t| t.force).collect()
     }
 
     /// Recomputes forces after positions were set by hand (tests, restarts).
@@ -525,10 +556,10 @@ impl<const D: usize> Stepper for Simulation<D> {
         let (kinetic, momentum) = self.kinetic_energy_and_momentum();
         // W_i from the last force evaluation, at the current positions.
         let strain: f64 = self
-            .energy_density
+            .terms
             .iter()
             .zip(&self.lattice.volumes)
-            .map(|(w, v)| w * v)
+            .map(|(t, v)| t.energy_density * v)
             .sum();
         let now = Instant::now();
         let (last_step, last_time) = self.last_frame;

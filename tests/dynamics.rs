@@ -203,6 +203,31 @@ fn damage_of_half_cut_family_is_one_half() {
         }
     }
     assert!(cut_weight > 0.0);
-    let phi = sim.damage()[c];
+    let phi = sim.damage_from_bonds()[c];
     assert!((phi - 0.5).abs() < 1e-12, "damage {phi}");
+}
+
+/// The damage the force loop keeps up to date equals a fresh pass over the bond states,
+/// pre-cracks included.
+#[test]
+fn incremental_damage_matches_a_pass_over_the_bonds() {
+    let scene = Scene::load("kalthoff-winkler", Some("small")).unwrap();
+    let mut sim = Simulation::<2>::new(&scene).unwrap();
+    let check = |sim: &Simulation<2>| {
+        let (a, b) = (sim.damage(), sim.damage_from_bonds());
+        let worst = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-12, "worst difference {worst:e}");
+        b.iter().filter(|&&d| d > 0.0).count()
+    };
+    let precracked = check(&sim);
+    assert!(precracked > 0);
+    for _ in 0..200 {
+        sim.step().unwrap();
+    }
+    assert!(sim.broken_bonds() > 0);
+    assert!(check(&sim) > precracked);
 }

@@ -30,6 +30,59 @@ impl Quadrature {
     }
 }
 
+/// What the force loop produces per node.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NodeTerms<const D: usize> {
+    /// Force density (N/m³).
+    pub force: [f64; D],
+    /// Strain-energy density W_i over the intact bonds (J/m³).
+    pub energy_density: f64,
+    /// Σ β V'_j over the node's broken bonds, V' = 1 where all volumes are equal (the damage
+    /// numerator, kept up to date as bonds break).
+    pub broken_weight: f64,
+}
+
+impl<const D: usize> Default for NodeTerms<D> {
+    fn default() -> Self {
+        NodeTerms {
+            force: [0.0; D],
+            energy_density: 0.0,
+            broken_weight: 0.0,
+        }
+    }
+}
+
+/// Per node, (Σ β V'_j over all bonds, Σ β V'_j over broken bonds) with V' = 1 where
+/// `uniform_volume` is set: the damage denominator and the numerator `pmb_forces` updates.
+pub fn damage_weights(
+    volumes: &[f64],
+    uniform_volume: Option<f64>,
+    families: &Families,
+    intact: &[u8],
+    quadrature: &Quadrature,
+) -> (Vec<f64>, Vec<f64>) {
+    (0..families.node_count())
+        .into_par_iter()
+        .map(|i| {
+            let (mut all, mut lost) = (0.0, 0.0);
+            for b in families.range(i) {
+                let j = families.neighbors[b] as usize;
+                let v = if uniform_volume.is_some() {
+                    1.0
+                } else {
+                    volumes[j]
+                };
+                let w = quadrature.beta(families.lengths[b]) * v;
+                all += w;
+                if intact[b] == 0 {
+                    lost += w;
+                }
+            }
+            (all, lost)
+        })
+        .unzip()
+}
+
 /// Bond state μ: 1 intact, 0 broken (2.34). One byte per directed bond.
 pub fn intact_bonds(count: usize) -> Vec<u8> {
     vec![1; count]
@@ -48,8 +101,7 @@ pub fn pmb_forces<const D: usize>(
     intact: &mut [u8],
     law: &PmbLaw,
     quadrature: &Quadrature,
-    force: &mut [[f64; D]],
-    energy_density: &mut [f64],
+    terms: &mut [NodeTerms<D>],
 ) -> u64 {
     pmb_forces_portable(
         positions,
@@ -59,8 +111,7 @@ pub fn pmb_forces<const D: usize>(
         intact,
         law,
         quadrature,
-        force,
-        energy_density,
+        terms,
     )
 }
 
@@ -74,8 +125,7 @@ fn pmb_forces_portable<const D: usize>(
     intact: &mut [u8],
     law: &PmbLaw,
     quadrature: &Quadrature,
-    force: &mut [[f64; D]],
-    energy_density: &mut [f64],
+    terms: &mut [NodeTerms<D>],
 ) -> u64 {
     assert_eq!(positions.len(), families.node_count());
     assert_eq!(intact.len(), families.bond_count());
@@ -95,8 +145,8 @@ fn pmb_forces_portable<const D: usize>(
                     families,
                     intact,
                     law,
-                    force,
-                    energy_density,
+                    terms,
+                    quadrature,
                     move |l| $weight(l) * v,
                     |_| 1.0,
                 ),
@@ -105,8 +155,8 @@ fn pmb_forces_portable<const D: usize>(
                     families,
                     intact,
                     law,
-                    force,
-                    energy_density,
+                    terms,
+                    quadrature,
                     $weight,
                     |j| volumes[j],
                 ),
@@ -136,36 +186,37 @@ fn pmb_rows<const D: usize>(
     families: &Families,
     intact: &mut [u8],
     law: &PmbLaw,
-    force: &mut [[f64; D]],
-    energy_density: &mut [f64],
+    terms: &mut [NodeTerms<D>],
+    quadrature: &Quadrature,
     weight: impl Fn(f64) -> f64 + Sync,
     volume: impl Fn(usize) -> f64 + Sync,
 ) -> u64 {
     let s0 = law.critical_stretch;
     #[cfg(target_arch = "x86_64")]
     let avx2 = std::arch::is_x86_feature_detected!("avx2");
-    let kernel =
-        |first: usize, force: &mut [[f64; D]], energy: &mut [f64], state: &mut [u8]| -> u64 {
-            let rows = Rows {
-                positions,
-                families,
-                first,
-                s0,
-            };
-            #[cfg(target_arch = "x86_64")]
-            if avx2 {
-                // SAFETY: the CPU supports AVX2 (detected above).
-                return unsafe { rows_avx2(&rows, force, energy, state, &weight, &volume) };
-            }
-            rows_portable(&rows, force, energy, state, &weight, &volume)
+    let kernel = |first: usize, terms: &mut [NodeTerms<D>], state: &mut [u8]| -> u64 {
+        let rows = Rows {
+            positions,
+            families,
+            quadrature,
+            first,
+            s0,
         };
-    split_rows(families, 0, force, energy_density, intact, &kernel)
+        #[cfg(target_arch = "x86_64")]
+        if avx2 {
+            // SAFETY: the CPU supports AVX2 (detected above).
+            return unsafe { rows_avx2(&rows, terms, state, &weight, &volume) };
+        }
+        rows_portable(&rows, terms, state, &weight, &volume)
+    };
+    split_rows(families, 0, terms, intact, &kernel)
 }
 
 /// A block of consecutive rows of the force loop.
 struct Rows<'a, const D: usize> {
     positions: &'a [[f64; D]],
     families: &'a Families,
+    quadrature: &'a Quadrature,
     first: usize,
     s0: f64,
 }
@@ -173,8 +224,7 @@ struct Rows<'a, const D: usize> {
 #[inline(always)]
 fn rows_portable<const D: usize>(
     rows: &Rows<D>,
-    force: &mut [[f64; D]],
-    energy: &mut [f64],
+    terms: &mut [NodeTerms<D>],
     state: &mut [u8],
     weight: &impl Fn(f64) -> f64,
     volume: &impl Fn(usize) -> f64,
@@ -182,22 +232,24 @@ fn rows_portable<const D: usize>(
     let families = rows.families;
     let base = families.offsets[rows.first];
     let mut broken = 0u64;
-    for (row, (f_i, w_i)) in force.iter_mut().zip(energy.iter_mut()).enumerate() {
+    for (row, t_i) in terms.iter_mut().enumerate() {
         let i = rows.first + row;
         let range = families.range(i);
-        let (acc, w, newly_broken) = pmb_row(
+        let (acc, w, newly_broken, lost) = pmb_row(
             rows.positions[i],
             &families.neighbors[range.clone()],
             &families.lengths[range.clone()],
             &mut state[range.start - base..range.end - base],
             rows.positions,
             rows.s0,
+            rows.quadrature,
             weight,
             volume,
         );
         broken += newly_broken;
-        *f_i = acc;
-        *w_i = 0.25 * w;
+        t_i.force = acc;
+        t_i.energy_density = 0.25 * w;
+        t_i.broken_weight += lost;
     }
     broken
 }
@@ -208,13 +260,12 @@ fn rows_portable<const D: usize>(
 #[target_feature(enable = "avx,avx2")]
 fn rows_avx2<const D: usize>(
     rows: &Rows<D>,
-    force: &mut [[f64; D]],
-    energy: &mut [f64],
+    terms: &mut [NodeTerms<D>],
     state: &mut [u8],
     weight: &impl Fn(f64) -> f64,
     volume: &impl Fn(usize) -> f64,
 ) -> u64 {
-    rows_portable(rows, force, energy, state, weight, volume)
+    rows_portable(rows, terms, state, weight, volume)
 }
 
 /// Bonds evaluated together: the lane loops below are written so the compiler turns them
@@ -232,9 +283,11 @@ fn pmb_row<const D: usize>(
     state: &mut [u8],
     positions: &[[f64; D]],
     s0: f64,
+    quadrature: &Quadrature,
     weight: &impl Fn(f64) -> f64,
     volume: &impl Fn(usize) -> f64,
-) -> ([f64; D], f64, u64) {
+) -> ([f64; D], f64, u64, f64) {
+    let mut lost = 0.0;
     let mut acc_lanes = [[0.0; LANES]; D];
     let mut w_lanes = [0.0; LANES];
     let mut broken = 0u64;
@@ -280,6 +333,7 @@ fn pmb_row<const D: usize>(
                 if st[l] != 0 && !keep[l] {
                     st[l] = 0;
                     broken += 1;
+                    lost += quadrature.beta(ln[l]) * vol[l];
                 }
             }
         }
@@ -315,6 +369,7 @@ fn pmb_row<const D: usize>(
         if extension >= s0 * length {
             *mu = 0;
             broken += 1;
+            lost += quadrature.beta(length) * volume(j);
             continue;
         }
         let scale = weight(length) * volume(j) * extension / (length * r);
@@ -323,31 +378,29 @@ fn pmb_row<const D: usize>(
             acc[k] += scale * d[k];
         }
     }
-    (acc, w, broken)
+    (acc, w, broken, lost)
 }
 
 fn split_rows<const D: usize, K>(
     families: &Families,
     first: usize,
-    force: &mut [[f64; D]],
-    energy: &mut [f64],
+    terms: &mut [NodeTerms<D>],
     state: &mut [u8],
     kernel: &K,
 ) -> u64
 where
-    K: Fn(usize, &mut [[f64; D]], &mut [f64], &mut [u8]) -> u64 + Sync,
+    K: Fn(usize, &mut [NodeTerms<D>], &mut [u8]) -> u64 + Sync,
 {
-    if force.len() <= ROWS_PER_TASK {
-        return kernel(first, force, energy, state);
+    if terms.len() <= ROWS_PER_TASK {
+        return kernel(first, terms, state);
     }
-    let mid = force.len() / 2;
-    let (force_a, force_b) = force.split_at_mut(mid);
-    let (energy_a, energy_b) = energy.split_at_mut(mid);
+    let mid = terms.len() / 2;
+    let (terms_a, terms_b) = terms.split_at_mut(mid);
     let cut = families.offsets[first + mid] - families.offsets[first];
     let (state_a, state_b) = state.split_at_mut(cut);
     let (a, b) = rayon::join(
-        || split_rows(families, first, force_a, energy_a, state_a, kernel),
-        || split_rows(families, first + mid, force_b, energy_b, state_b, kernel),
+        || split_rows(families, first, terms_a, state_a, kernel),
+        || split_rows(families, first + mid, terms_b, state_b, kernel),
     );
     a + b
 }
@@ -533,8 +586,7 @@ mod tests {
                 .unwrap();
             pool.install(|| {
                 let mut intact = intact_bonds(families.bond_count());
-                let mut force = vec![[0.0; 3]; lattice.len()];
-                let mut energy = vec![0.0; lattice.len()];
+                let mut terms = vec![NodeTerms::default(); lattice.len()];
                 let broken = pmb_forces(
                     &positions,
                     &lattice.volumes,
@@ -543,61 +595,39 @@ mod tests {
                     &mut intact,
                     &law,
                     &quadrature,
-                    &mut force,
-                    &mut energy,
+                    &mut terms,
                 );
-                (broken, intact, force, energy)
+                (broken, intact, terms)
             })
         };
-        let (broken, intact, force, energy) = run(1);
+        let (broken, intact, terms) = run(1);
         assert!(broken > 0 && broken < families.bond_count() as u64);
-        assert_eq!(
-            run(2),
-            (broken, intact.clone(), force.clone(), energy.clone())
-        );
+        assert_eq!(run(2), (broken, intact.clone(), terms.clone()));
 
         let rows = Rows {
             positions: &positions,
             families: &families,
+            quadrature: &quadrature,
             first: 0,
             s0: law.critical_stretch,
         };
         let weight = |l: f64| quadrature.beta(l);
         let volume = |_j: usize| 1.0;
-        let mut portable = (
-            intact_bonds(families.bond_count()),
-            vec![[0.0; 3]; lattice.len()],
-            vec![0.0; lattice.len()],
-        );
-        let b1 = rows_portable(
-            &rows,
-            &mut portable.1,
-            &mut portable.2,
-            &mut portable.0,
-            &weight,
-            &volume,
-        );
+        let fresh = || {
+            (
+                intact_bonds(families.bond_count()),
+                vec![NodeTerms::default(); lattice.len()],
+            )
+        };
+        let mut portable = fresh();
+        let b1 = rows_portable(&rows, &mut portable.1, &mut portable.0, &weight, &volume);
         assert_eq!(b1, broken);
-        assert_eq!(portable.0, intact);
-        assert_eq!(portable.1, force);
+        assert_eq!(portable, (intact, terms));
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
-            let mut wide = (
-                intact_bonds(families.bond_count()),
-                vec![[0.0; 3]; lattice.len()],
-                vec![0.0; lattice.len()],
-            );
+            let mut wide = fresh();
             // SAFETY: AVX2 support was detected just above.
-            let b2 = unsafe {
-                rows_avx2(
-                    &rows,
-                    &mut wide.1,
-                    &mut wide.2,
-                    &mut wide.0,
-                    &weight,
-                    &volume,
-                )
-            };
+            let b2 = unsafe { rows_avx2(&rows, &mut wide.1, &mut wide.0, &weight, &volume) };
             assert_eq!(b2, b1);
             assert_eq!(wide, portable);
         }
