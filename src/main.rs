@@ -285,7 +285,7 @@ fn simulate(scene: &Scene, target: RecordTarget, args: &RunArgs) -> Result<RunSu
     let summary = runner::run(sim.as_mut(), &mut sink, &stop, Some(total), &mut progress);
     bar.finish_and_clear();
     let written = sink.finish().map_err(Failure::Runtime)?;
-    print_summary(&summary, written);
+    print_summary(&summary, written.frames);
     if let Some(e) = &summary.error {
         eprintln!("error: {e}");
     }

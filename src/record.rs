@@ -49,9 +49,17 @@ enum Message {
 /// buffering without bound) when the sink falls behind.
 const CHANNEL_CAPACITY: usize = 4;
 
+/// What the logging thread did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SinkReport {
+    pub frames: u64,
+    /// Wall time the logging thread spent converting, logging and flushing.
+    pub busy_seconds: f64,
+}
+
 pub struct RerunSink {
     sender: Option<Sender<Message>>,
-    worker: Option<JoinHandle<Result<u64, String>>>,
+    worker: Option<JoinHandle<Result<SinkReport, String>>>,
 }
 
 impl RerunSink {
@@ -72,18 +80,18 @@ impl RerunSink {
     }
 
     /// Logs everything still queued, closes the recording (writing the file's footer) and
-    /// returns the number of frames written.
-    pub fn finish(mut self) -> Result<u64, String> {
+    /// reports the frames written and the logging thread's busy time.
+    pub fn finish(mut self) -> Result<SinkReport, String> {
         self.close()
     }
 
-    fn close(&mut self) -> Result<u64, String> {
+    fn close(&mut self) -> Result<SinkReport, String> {
         drop(self.sender.take());
         match self.worker.take() {
             Some(handle) => handle
                 .join()
                 .map_err(|_| "the logging thread panicked".to_string())?,
-            None => Ok(0),
+            None => Ok(SinkReport::default()),
         }
     }
 }
@@ -239,13 +247,14 @@ fn log_loop(
     stream: RecordingStream,
     receiver: Receiver<Message>,
     radius: f32,
-) -> Result<u64, String> {
-    let mut frames = 0;
+) -> Result<SinkReport, String> {
+    let mut report = SinkReport::default();
     let mut result = Ok(());
     for message in receiver {
+        let started = std::time::Instant::now();
         let logged = match message {
             Message::Frame(frame) => {
-                frames += 1;
+                report.frames += 1;
                 log_frame(&stream, &frame, radius)
             }
             Message::Text(level, text) => stream.log(
@@ -260,10 +269,13 @@ fn log_loop(
         if let Err(e) = logged {
             result = Err(format!("logging failed: {e}"));
         }
+        report.busy_seconds += started.elapsed().as_secs_f64();
     }
+    let started = std::time::Instant::now();
     let _ = stream.flush_with_timeout(Duration::from_secs(30));
     drop(stream);
-    result.map(|_| frames)
+    report.busy_seconds += started.elapsed().as_secs_f64();
+    result.map(|_| report)
 }
 
 fn log_frame(
@@ -274,11 +286,22 @@ fn log_frame(
     stream.set_time_sequence("step", frame.step as i64);
     stream.set_duration_secs("sim_time", frame.time);
     let dim = frame.dim;
+    // Positions converted once, shared by every field's entity.
+    let positions: Vec<[f32; 3]> = frame
+        .positions
+        .chunks_exact(dim)
+        .map(|p| std::array::from_fn(|k| p.get(k).map_or(0.0, |&v| v as f32)))
+        .collect();
+    let palette = palette();
     for field in &frame.fields {
+        let scale = 255.0 / (field.range.1 - field.range.0);
         let colors: Vec<rerun::Color> = field
             .values
             .iter()
-            .map(|&v| colormap((v - field.range.0) / (field.range.1 - field.range.0)))
+            .map(|&v| {
+                let t = ((v - field.range.0) * scale).clamp(0.0, 255.0);
+                palette[if t.is_finite() { t as usize } else { 0 }]
+            })
             .collect();
         let raw: ArrayRef = Arc::new(Float32Array::from_iter_values(
             field.values.iter().map(|&v| v as f32),
@@ -290,25 +313,15 @@ fn log_frame(
         let path = format!("nodes/{}", field.name);
         let points: Box<dyn AsComponents> = if dim == 3 {
             Box::new(
-                rerun::Points3D::new(
-                    frame
-                        .positions
-                        .chunks_exact(3)
-                        .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]),
-                )
-                .with_colors(colors)
-                .with_radii([radius]),
+                rerun::Points3D::new(positions.iter().copied())
+                    .with_colors(colors)
+                    .with_radii([radius]),
             )
         } else {
             Box::new(
-                rerun::Points2D::new(
-                    frame
-                        .positions
-                        .chunks_exact(dim)
-                        .map(|p| [p[0] as f32, if dim == 2 { p[1] as f32 } else { 0.0 }]),
-                )
-                .with_colors(colors)
-                .with_radii([radius]),
+                rerun::Points2D::new(positions.iter().map(|p| [p[0], p[1]]))
+                    .with_colors(colors)
+                    .with_radii([radius]),
             )
         };
         stream.log(path, &[points.as_ref(), &values as &dyn AsComponents])?;
@@ -317,6 +330,12 @@ fn log_frame(
         stream.log(format!("metrics/{name}"), &rerun::Scalars::single(*value))?;
     }
     Ok(())
+}
+
+/// The colormap sampled at 256 levels.
+fn palette() -> &'static [rerun::Color; 256] {
+    static PALETTE: std::sync::OnceLock<[rerun::Color; 256]> = std::sync::OnceLock::new();
+    PALETTE.get_or_init(|| std::array::from_fn(|i| colormap(i as f64 / 255.0)))
 }
 
 /// Viridis, sampled at nine points and interpolated linearly; t is clamped to [0, 1].
