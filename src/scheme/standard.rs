@@ -103,30 +103,6 @@ pub fn pmb_forces<const D: usize>(
     quadrature: &Quadrature,
     terms: &mut [NodeTerms<D>],
 ) -> u64 {
-    pmb_forces_portable(
-        positions,
-        volumes,
-        uniform_volume,
-        families,
-        intact,
-        law,
-        quadrature,
-        terms,
-    )
-}
-
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn pmb_forces_portable<const D: usize>(
-    positions: &[[f64; D]],
-    volumes: &[f64],
-    uniform_volume: Option<f64>,
-    families: &Families,
-    intact: &mut [u8],
-    law: &PmbLaw,
-    quadrature: &Quadrature,
-    terms: &mut [NodeTerms<D>],
-) -> u64 {
     assert_eq!(positions.len(), families.node_count());
     assert_eq!(intact.len(), families.bond_count());
     let c = law.micromodulus;
