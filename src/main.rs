@@ -232,6 +232,7 @@ fn exit_code(summary: &RunSummary) -> ExitCode {
 }
 
 fn simulate(scene: &Scene, target: RecordTarget, args: &RunArgs) -> Result<RunSummary, Failure> {
+    let serving = matches!(target, RecordTarget::Serve { .. });
     let mut scene = scene.clone();
     if let Some(k) = args.every {
         if k == 0 {
@@ -284,6 +285,13 @@ fn simulate(scene: &Scene, target: RecordTarget, args: &RunArgs) -> Result<RunSu
     };
     let summary = runner::run(sim.as_mut(), &mut sink, &stop, Some(total), &mut progress);
     bar.finish_and_clear();
+    if serving && !stop.load(Ordering::Relaxed) {
+        // Viewers may connect after the run: keep the stream (and its replay buffer) alive.
+        eprintln!("run finished; still serving the recording — press Ctrl-C to stop");
+        while !stop.load(Ordering::Relaxed) {
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+    }
     let written = sink.finish().map_err(Failure::Runtime)?;
     print_summary(&summary, written.frames);
     if let Some(e) = &summary.error {
