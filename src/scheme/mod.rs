@@ -1,3 +1,4 @@
 //! Spatial discretizations as operators.
 
 pub mod standard;
+pub mod wls;

@@ -1,0 +1,570 @@
+//! Meshfree WLS collocation scheme (thesis §3.2; seed-thesis-ch2-3 §3, seed-004 §2): a local
+//! polynomial fit over a few collocation nodes, with the PD integral over the full ball done
+//! analytically (the L operators of §3.5).
+//!
+//! Errata followed: (3.28) uses p(x_j − x_i) in A (erratum 1); the weight (3.26) is evaluated
+//! in its stable form; the fit is solved in coordinates scaled by δ, with L scaled to match.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::family::Families;
+use crate::scene::Influence;
+
+/// Monomials ξ^α of total degree ≤ `order` in `dim` dimensions, ordered by degree and, within
+/// a degree, by decreasing x then y exponent: 3D C² is (1, x, y, z, x², xy, xz, y², yz, z²)
+/// as in (3.23).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Basis {
+    pub dim: usize,
+    pub order: usize,
+    pub exponents: Vec<[u32; 3]>,
+}
+
+impl Basis {
+    pub fn new(dim: usize, order: usize) -> Self {
+        let mut exponents = Vec::new();
+        for n in 0..=order as u32 {
+            match dim {
+                1 => exponents.push([n, 0, 0]),
+                2 => (0..=n).rev().for_each(|a| exponents.push([a, n - a, 0])),
+                _ => {
+                    for a in (0..=n).rev() {
+                        for b in (0..=n - a).rev() {
+                            exponents.push([a, b, n - a - b]);
+                        }
+                    }
+                }
+            }
+        }
+        Basis {
+            dim,
+            order,
+            exponents,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.exponents.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.exponents.is_empty()
+    }
+
+    /// Row p(ξ) of the monomials at ξ.
+    pub fn eval(&self, xi: &[f64], out: &mut [f64]) {
+        for (o, alpha) in out.iter_mut().zip(&self.exponents) {
+            *o = (0..self.dim).map(|k| xi[k].powi(alpha[k] as i32)).product();
+        }
+    }
+
+    pub fn degree(&self, m: usize) -> u32 {
+        self.exponents[m].iter().sum()
+    }
+}
+
+/// WLS weight (3.26), w̄(d) = (1 − e^{64 − 16 d²/r̄²})/(1 − e^{64}), in the equivalent form
+/// (e^{−16 d²/r̄²} − e^{−64})/(1 − e^{−64}) that does not overflow.
+pub fn weight(d: f64, r_max: f64) -> f64 {
+    let e64 = (-64.0f64).exp();
+    ((-16.0 * d * d / (r_max * r_max)).exp() - e64) / (1.0 - e64)
+}
+
+/// Radial moment R(s) = ∫_0^δ ω(r) r^s dr (§3.5), s > −1.
+pub fn radial_moment(s: f64, horizon: f64, influence: Influence) -> f64 {
+    match influence {
+        Influence::Constant => horizon.powf(s + 1.0) / (s + 1.0),
+        Influence::Linear => horizon.powf(s + 1.0) / ((s + 1.0) * (s + 2.0)),
+    }
+}
+
+/// Γ(m/2) for a whole m ≥ 1.
+fn gamma_half(m: u32) -> f64 {
+    let (mut x, mut g) = if m.is_multiple_of(2) {
+        (1.0, 1.0) // Γ(1)
+    } else {
+        (0.5, std::f64::consts::PI.sqrt()) // Γ(1/2)
+    };
+    while (2.0 * x) < m as f64 {
+        g *= x;
+        x += 1.0;
+    }
+    g
+}
+
+/// Angular moment S(β) = ∫ over the unit sphere of θ^β (§3.5): 2 Π Γ((β_i+1)/2) /
+/// Γ((|β|+n_d)/2) if every β_i is even, else 0; in 1D, 2 for even β.
+pub fn angular_moment(beta: [u32; 3], dim: usize) -> f64 {
+    if beta[..dim].iter().any(|b| b % 2 == 1) {
+        return 0.0;
+    }
+    let total: u32 = beta[..dim].iter().sum();
+    2.0 * beta[..dim]
+        .iter()
+        .map(|&b| gamma_half(b + 1))
+        .product::<f64>()
+        / gamma_half(total + dim as u32)
+}
+
+/// L_C of diffusion with kernel κ ω ‖ξ‖^{−q} (3.60)–(3.67): L_C[α] = κ R(n − q + n_d − 1) S(α).
+pub fn diffusion_l(
+    basis: &Basis,
+    kappa: f64,
+    q: f64,
+    horizon: f64,
+    influence: Influence,
+) -> Vec<f64> {
+    let nd = basis.dim as f64;
+    basis
+        .exponents
+        .iter()
+        .map(|&alpha| {
+            let n: u32 = alpha.iter().sum();
+            if n == 0 {
+                return 0.0;
+            }
+            kappa
+                * radial_moment(n as f64 - q + nd - 1.0, horizon, influence)
+                * angular_moment(alpha, basis.dim)
+        })
+        .collect()
+}
+
+/// L blocks of linearized bond-based elasticity (3.54)–(3.56): entry [k][l][α] is the
+/// coefficient of the α-monomial of displacement component l in force component k,
+/// c R(n + n_d − 2) S(α + e_k + e_l).
+pub fn bond_l(basis: &Basis, c: f64, horizon: f64, influence: Influence) -> Vec<Vec<Vec<f64>>> {
+    let d = basis.dim;
+    let nd = d as f64;
+    (0..d)
+        .map(|k| {
+            (0..d)
+                .map(|l| {
+                    basis
+                        .exponents
+                        .iter()
+                        .map(|&alpha| {
+                            let n: u32 = alpha.iter().sum();
+                            if n == 0 {
+                                return 0.0;
+                            }
+                            let mut beta = alpha;
+                            beta[k] += 1;
+                            beta[l] += 1;
+                            c * radial_moment(n as f64 + nd - 2.0, horizon, influence)
+                                * angular_moment(beta, d)
+                        })
+                        .collect()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Collocation set of a node (§3.1): for each point of an auxiliary grid of spacing δ/k_aux
+/// centred at the node and inside the ball, the nearest family node (the node itself
+/// included) not already chosen; ties go to the lower index. The node itself comes first.
+pub fn collocation_set<const D: usize>(
+    i: usize,
+    positions: &[[f64; D]],
+    families: &Families,
+    horizon: f64,
+    k_aux: usize,
+) -> Vec<u32> {
+    let h = horizon / k_aux as f64;
+    let k = k_aux as i64;
+    let mut candidates: Vec<u32> = std::iter::once(i as u32)
+        .chain(families.range(i).map(|b| families.neighbors[b]))
+        .collect();
+    candidates.sort_unstable();
+    let mut chosen = vec![i as u32];
+    let mut taken = vec![false; candidates.len()];
+    if let Ok(self_slot) = candidates.binary_search(&(i as u32)) {
+        taken[self_slot] = true;
+    }
+    let mut index = [-k; D];
+    'grid: loop {
+        let n2: i64 = index.iter().map(|v| v * v).sum();
+        if n2 > 0 && n2 <= k * k {
+            let target: [f64; D] = std::array::from_fn(|a| positions[i][a] + index[a] as f64 * h);
+            let best = candidates
+                .iter()
+                .enumerate()
+                .filter(|(slot, _)| !taken[*slot])
+                .map(|(slot, &j)| {
+                    let d2: f64 = (0..D)
+                        .map(|a| (positions[j as usize][a] - target[a]).powi(2))
+                        .sum();
+                    (d2, slot)
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            if let Some((_, slot)) = best {
+                taken[slot] = true;
+                chosen.push(candidates[slot]);
+            }
+        }
+        for v in index.iter_mut() {
+            *v += 1;
+            if *v <= k {
+                continue 'grid;
+            }
+            *v = -k;
+        }
+        break;
+    }
+    chosen
+}
+
+/// Why a node's WLS fit cannot be used.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitError {
+    pub node: usize,
+    pub message: String,
+}
+
+impl std::fmt::Display for FitError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "WLS fit at node {}: {}", self.node, self.message)
+    }
+}
+
+/// Largest tolerated condition number of the equilibrated normal matrix A.
+pub const MAX_CONDITION: f64 = 1e12;
+
+/// Q_i = A_i⁻¹ B_i (3.27)–(3.31) in coordinates scaled by δ: an n_p × n_c matrix whose
+/// column j maps the value at collocation node j to the scaled monomial coefficients.
+pub fn fit_matrix<const D: usize>(
+    node: usize,
+    collocation: &[u32],
+    positions: &[[f64; D]],
+    basis: &Basis,
+    horizon: f64,
+) -> Result<DMatrix<f64>, FitError> {
+    let (np, nc) = (basis.len(), collocation.len());
+    if nc < np {
+        return Err(FitError {
+            node,
+            message: format!(
+                "{nc} collocation nodes for {np} basis monomials; use a finer auxiliary grid (larger k_aux) or a lower order"
+            ),
+        });
+    }
+    let xi: Vec<[f64; D]> = collocation
+        .iter()
+        .map(|&j| {
+            std::array::from_fn(|a| (positions[j as usize][a] - positions[node][a]) / horizon)
+        })
+        .collect();
+    let r_max = xi
+        .iter()
+        .map(|x| x.iter().map(|v| v * v).sum::<f64>().sqrt())
+        .fold(0.0, f64::max);
+    let mut weighted_rows = DMatrix::<f64>::zeros(np, nc); // columns: w̄_j p(ξ_j)ᵀ = B
+    let mut row = vec![0.0; np];
+    let mut a = DMatrix::<f64>::zeros(np, np);
+    for (c, x) in xi.iter().enumerate() {
+        basis.eval(x, &mut row);
+        let w = weight(x.iter().map(|v| v * v).sum::<f64>().sqrt(), r_max);
+        for m in 0..np {
+            weighted_rows[(m, c)] = w * row[m];
+            for n in 0..np {
+                a[(m, n)] += w * row[m] * row[n];
+            }
+        }
+    }
+    // Conditioning of the equilibrated matrix (unit diagonal): the monomials' scales are
+    // arbitrary, what matters is how independent they are on this set.
+    let diag: Vec<f64> = (0..np)
+        .map(|m| a[(m, m)].max(f64::MIN_POSITIVE).sqrt())
+        .collect();
+    let equilibrated = DMatrix::from_fn(np, np, |m, n| a[(m, n)] / (diag[m] * diag[n]));
+    let eigen = equilibrated.symmetric_eigen();
+    let (lo, hi) = eigen
+        .eigenvalues
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    if !(lo > 0.0 && hi / lo < MAX_CONDITION) {
+        return Err(FitError {
+            node,
+            message: format!(
+                "ill-conditioned collocation set (condition number {:.2e} of A, {nc} nodes for {np} monomials); use a finer auxiliary grid (larger k_aux) or a lower order",
+                hi / lo.max(f64::MIN_POSITIVE)
+            ),
+        });
+    }
+    let cholesky = a.cholesky().ok_or_else(|| FitError {
+        node,
+        message:
+            "normal matrix is not positive definite; use a finer auxiliary grid or a lower order"
+                .into(),
+    })?;
+    Ok(cholesky.solve(&weighted_rows))
+}
+
+/// Scales L entries to the δ-scaled monomials: ξ^α = δ^n (ξ/δ)^α.
+pub fn scale_to_fit(basis: &Basis, l: &[f64], horizon: f64) -> DVector<f64> {
+    DVector::from_iterator(
+        basis.len(),
+        l.iter()
+            .enumerate()
+            .map(|(m, v)| v / horizon.powi(basis.degree(m) as i32)),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::{Lattice, SplitMix64};
+    use crate::scene::Solid;
+
+    fn centre_node<const D: usize>(lattice: &Lattice<D>, at: f64) -> usize {
+        (0..lattice.len())
+            .min_by(|&a, &b| {
+                let d = |i: usize| {
+                    lattice.positions[i]
+                        .iter()
+                        .map(|v| (v - at).powi(2))
+                        .sum::<f64>()
+                };
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap()
+    }
+
+    fn setup<const D: usize>(m: usize, perturbation: f64) -> (Lattice<D>, Families, usize) {
+        let n = 2 * m + 4;
+        let solid = Solid::Box {
+            min: vec![0.0; D],
+            max: vec![n as f64; D],
+        };
+        let lattice = Lattice::<D>::build(&solid, 1.0, perturbation, 11);
+        let families = Families::build(&lattice.positions, m as f64 * (1.0 + 1e-9));
+        let c = centre_node(&lattice, (n / 2) as f64);
+        (lattice, families, c)
+    }
+
+    #[test]
+    fn basis_sizes_and_order() {
+        assert_eq!(
+            Basis::new(3, 2).exponents[4..],
+            [
+                [2, 0, 0],
+                [1, 1, 0],
+                [1, 0, 1],
+                [0, 2, 0],
+                [0, 1, 1],
+                [0, 0, 2]
+            ]
+        );
+        assert_eq!(Basis::new(2, 2).len(), 6);
+        assert_eq!(Basis::new(2, 4).len(), 15);
+        assert_eq!(Basis::new(1, 6).len(), 7);
+        assert_eq!(Basis::new(3, 2).len(), 10);
+    }
+
+    #[test]
+    fn weight_function_values() {
+        assert!((weight(0.0, 1.0) - 1.0).abs() < 1e-15);
+        assert!((weight(0.5, 1.0) - 0.0183).abs() < 1e-4);
+        assert!((weight(1.0, 1.0) - 1.1e-7).abs() < 0.1e-7);
+    }
+
+    #[test]
+    fn collocation_counts_match_the_papers() {
+        let (l1, f1, c1) = setup::<1>(12, 0.0);
+        for (k, n) in [(2, 5), (6, 13)] {
+            assert_eq!(collocation_set(c1, &l1.positions, &f1, 12.0, k).len(), n);
+        }
+        let (l1, f1, c1) = setup::<1>(10, 0.0);
+        assert_eq!(collocation_set(c1, &l1.positions, &f1, 10.0, 5).len(), 11);
+        let (l2, f2, c2) = setup::<2>(12, 0.0);
+        assert_eq!(collocation_set(c2, &l2.positions, &f2, 12.0, 3).len(), 29);
+        assert_eq!(collocation_set(c2, &l2.positions, &f2, 12.0, 4).len(), 49);
+        let (l3, f3, c3) = setup::<3>(6, 0.0);
+        let set = collocation_set(c3, &l3.positions, &f3, 6.0, 3);
+        assert_eq!(set.len(), 123);
+        assert_eq!(set[0] as usize, c3);
+        let mut unique = set.clone();
+        unique.sort_unstable();
+        unique.dedup();
+        assert_eq!(unique.len(), set.len(), "no node chosen twice");
+    }
+
+    #[test]
+    fn closed_forms_of_the_l_operators() {
+        use std::f64::consts::PI;
+        let (d, q, kappa, c) = (0.7, 1.0, 2.0, 3.0);
+        let b3 = Basis::new(3, 2);
+        let l = diffusion_l(&b3, kappa, q, d, Influence::Constant);
+        let lc = 4.0 * PI * kappa * d.powf(5.0 - q) / (15.0 - 3.0 * q);
+        assert_eq!(l.iter().filter(|v| v.abs() > 0.0).count(), 3);
+        for m in [4, 7, 9] {
+            assert!((l[m] / lc - 1.0).abs() < 1e-12, "(3.66)");
+        }
+        let l = diffusion_l(&b3, kappa, q, d, Influence::Linear);
+        let lc = 4.0 * PI * kappa * d.powf(5.0 - q) / (3.0 * q * q - 33.0 * q + 90.0);
+        assert!((l[4] / lc - 1.0).abs() < 1e-12, "(3.67)");
+        let lb = bond_l(&b3, c, d, Influence::Constant);
+        let lambda = PI * c * d.powi(4) / 5.0;
+        // (3.58): L_u row x = λ (.., 1 at x², 1/3 at y², 1/3 at z²); row y = λ/3 at xy.
+        assert!((lb[0][0][4] / lambda - 1.0).abs() < 1e-12);
+        assert!((lb[0][0][7] / lambda - 1.0 / 3.0).abs() < 1e-12);
+        assert!((lb[1][0][5] / lambda - 1.0 / 3.0).abs() < 1e-12);
+        assert_eq!(lb[0][0][5], 0.0);
+        let lb = bond_l(&b3, c, d, Influence::Linear);
+        assert!((lb[0][0][4] / (PI * c * d.powi(4) / 25.0) - 1.0).abs() < 1e-12);
+        // 1D: L = (0, 0, c δ²) for ω0.
+        let l1 = bond_l(&Basis::new(1, 2), c, d, Influence::Constant);
+        assert!((l1[0][0][2] / (c * d * d) - 1.0).abs() < 1e-12);
+        // 2D disc: λ2 = π c δ³ / 4.
+        let l2 = bond_l(&Basis::new(2, 2), c, d, Influence::Constant);
+        assert!((l2[0][0][3] / (PI * c * d.powi(3) / 4.0) - 1.0).abs() < 1e-12);
+    }
+
+    /// For every dimension and order, a random polynomial of degree ≤ k pushed through the
+    /// fit and L equals the analytic PD integral L·a (a = its Taylor coefficients at x_i), on
+    /// a perturbed lattice; the weights of every node sum to zero.
+    fn reproduction<const D: usize>(order: usize, m: usize, k_aux: usize) {
+        let (lattice, families, c) = setup::<D>(m, 0.2);
+        let horizon = m as f64;
+        let basis = Basis::new(D, order);
+        let set = collocation_set(c, &lattice.positions, &families, horizon, k_aux);
+        let q = fit_matrix(c, &set, &lattice.positions, &basis, horizon).unwrap();
+        let l = diffusion_l(&basis, 1.0, 1.0, horizon, Influence::Constant);
+        let weights = scale_to_fit(&basis, &l, horizon).transpose() * &q;
+        let sum: f64 = weights.iter().sum();
+        let scale: f64 = weights.iter().map(|w| w.abs()).sum();
+        assert!(sum.abs() < 1e-11 * scale, "weights sum to {sum:e}");
+        let mut rng = SplitMix64(order as u64 * 7 + D as u64);
+        let coeffs: Vec<f64> = (0..basis.len()).map(|_| rng.next_f64() - 0.5).collect();
+        let xc = lattice.positions[c];
+        let mut row = vec![0.0; basis.len()];
+        let values: Vec<f64> = set
+            .iter()
+            .map(|&j| {
+                let xi: Vec<f64> = (0..D)
+                    .map(|a| lattice.positions[j as usize][a] - xc[a])
+                    .collect();
+                basis.eval(&xi, &mut row);
+                row.iter().zip(&coeffs).map(|(p, a)| p * a).sum()
+            })
+            .collect();
+        let wls: f64 = weights.iter().zip(&values).map(|(w, v)| w * v).sum();
+        let exact: f64 = l.iter().zip(&coeffs).map(|(l, a)| l * a).sum();
+        let size: f64 = l.iter().zip(&coeffs).map(|(l, a)| (l * a).abs()).sum();
+        assert!(
+            (wls - exact).abs() <= 1e-9 * size,
+            "{D}D order {order}: WLS {wls:e} vs analytic {exact:e}"
+        );
+    }
+
+    #[test]
+    fn polynomial_reproduction_1d() {
+        reproduction::<1>(2, 12, 6);
+        reproduction::<1>(4, 12, 6);
+        reproduction::<1>(6, 12, 6);
+    }
+
+    #[test]
+    fn polynomial_reproduction_2d() {
+        reproduction::<2>(2, 6, 3);
+        reproduction::<2>(4, 8, 4);
+    }
+
+    #[test]
+    fn polynomial_reproduction_3d() {
+        reproduction::<3>(2, 6, 3);
+    }
+
+    /// Bond-based WLS on quadratic displacements equals Navier's operator with the Poisson
+    /// ratio of bond-based PD: ν = 1/3 with the plane-stress c, ν = 1/4 with the plane-strain
+    /// c (2D), and in 3D u = (x², 0, 0) gives ρü_x = λ = π c δ⁴/5 (3.58).
+    #[test]
+    fn bond_based_wls_is_navier_on_quadratics() {
+        use crate::model::pmb::micromodulus;
+        use crate::scene::Plane;
+        let (lattice, families, c) = setup::<2>(6, 0.2);
+        let horizon = 6.0;
+        let basis = Basis::new(2, 2);
+        let set = collocation_set(c, &lattice.positions, &families, horizon, 3);
+        let q = fit_matrix(c, &set, &lattice.positions, &basis, horizon).unwrap();
+        let xc = lattice.positions[c];
+        // u = (a x² + b xy + e y², f x² + g xy + h y²) about x_c.
+        let (a, b, e, f, g, h) = (0.3, -0.2, 0.5, 0.1, 0.4, -0.6);
+        let field = |x: &[f64; 2]| {
+            let (x, y) = (x[0] - xc[0], x[1] - xc[1]);
+            [
+                a * x * x + b * x * y + e * y * y,
+                f * x * x + g * x * y + h * y * y,
+            ]
+        };
+        let values: Vec<[f64; 2]> = set
+            .iter()
+            .map(|&j| field(&lattice.positions[j as usize]))
+            .collect();
+        let youngs = 1.0;
+        for (plane, nu) in [(Plane::Stress, 1.0 / 3.0), (Plane::Strain, 0.25)] {
+            let cm = micromodulus(youngs, horizon, 2, plane, Influence::Constant);
+            let l = bond_l(&basis, cm, horizon, Influence::Constant);
+            let mut force = [0.0; 2];
+            for k in 0..2 {
+                for comp in 0..2 {
+                    let lk = scale_to_fit(&basis, &l[k][comp], horizon);
+                    let u = DVector::from_iterator(set.len(), values.iter().map(|v| v[comp]));
+                    force[k] += (lk.transpose() * &q * u)[(0, 0)];
+                }
+            }
+            let mu = youngs / (2.0 * (1.0 + nu));
+            let lambda = if plane == Plane::Stress {
+                youngs * nu / (1.0 - nu * nu)
+            } else {
+                youngs * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
+            };
+            // μ ∇²u + (λ + μ) ∇(∇·u) for the quadratic field.
+            let (uxx, uyy, vxy, vxx, vyy, uxy) = (2.0 * a, 2.0 * e, g, 2.0 * f, 2.0 * h, b);
+            let navier = [
+                mu * (uxx + uyy) + (lambda + mu) * (uxx + vxy),
+                mu * (vxx + vyy) + (lambda + mu) * (uxy + vyy),
+            ];
+            for k in 0..2 {
+                assert!(
+                    (force[k] - navier[k]).abs() < 1e-9,
+                    "{plane:?}: {force:?} vs {navier:?}"
+                );
+            }
+        }
+
+        let (lattice, families, c) = setup::<3>(6, 0.2);
+        let basis = Basis::new(3, 2);
+        let set = collocation_set(c, &lattice.positions, &families, horizon, 3);
+        let q = fit_matrix(c, &set, &lattice.positions, &basis, horizon).unwrap();
+        let xc = lattice.positions[c];
+        let cm = 1.0;
+        let l = bond_l(&basis, cm, horizon, Influence::Constant);
+        let u = DVector::from_iterator(
+            set.len(),
+            set.iter()
+                .map(|&j| (lattice.positions[j as usize][0] - xc[0]).powi(2)),
+        );
+        let coeffs = &q * u;
+        let fx = (scale_to_fit(&basis, &l[0][0], horizon).transpose() * &coeffs)[(0, 0)];
+        let lambda = std::f64::consts::PI * cm * horizon.powi(4) / 5.0;
+        assert!((fx / lambda - 1.0).abs() < 1e-9, "{fx} vs λ = {lambda}");
+    }
+
+    #[test]
+    fn too_few_collocation_nodes_name_the_node_and_the_fix() {
+        let (lattice, families, c) = setup::<2>(6, 0.0);
+        let basis = Basis::new(2, 4);
+        let set = collocation_set(c, &lattice.positions, &families, 6.0, 1);
+        let err = fit_matrix(c, &set, &lattice.positions, &basis, 6.0).unwrap_err();
+        assert_eq!(err.node, c);
+        let text = err.to_string();
+        assert!(
+            text.contains(&format!("node {c}")) && text.contains("k_aux"),
+            "{text}"
+        );
+    }
+}
