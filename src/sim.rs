@@ -11,7 +11,7 @@ use crate::metrics;
 use crate::model::pmb::PmbLaw;
 use crate::scene::error::locate_field;
 use crate::scene::{Condition, Duration, InitialVelocity, Scene, SceneError, StepSize};
-use crate::scheme::standard::{self, NodeTerms, Quadrature};
+use crate::scheme::standard::{self, NodeTerms, Quadrature, Standard};
 
 /// A run that had to stop.
 #[derive(Debug, Clone, PartialEq)]
@@ -198,24 +198,21 @@ impl<const D: usize> Simulation<D> {
             horizon: scene.horizon,
             volume_correction: scene.volume_correction,
         };
-        let gershgorin_dt = integrate::stable_step(
-            m.density,
-            &standard::stiffness_sums(&lattice.volumes, &families, &law, &quadrature),
-        );
+        let v0 = lattice.volumes[0];
+        let uniform_volume = lattice.volumes.iter().all(|&v| v == v0).then_some(v0);
+        let scheme = Standard {
+            reference: &lattice.positions,
+            volumes: &lattice.volumes,
+            uniform_volume,
+            families: &families,
+            law: &law,
+            quadrature: &quadrature,
+        };
+        let gershgorin_dt = integrate::stable_step(m.density, &scheme.stiffness_sums());
         let masses: Vec<f64> = lattice.volumes.iter().map(|v| v * m.density).collect();
         let lambda_max =
             stability::max_eigenvalue::<D>(lattice.len(), &masses, POWER_ITERATIONS, |u, out| {
-                standard::apply_linearized(
-                    &lattice.positions,
-                    &lattice.volumes,
-                    &families,
-                    &intact,
-                    &law,
-                    &quadrature,
-                    m.density,
-                    u,
-                    out,
-                )
+                scheme.apply_linearized(&intact, m.density, u, out)
             });
         // The Rayleigh quotient approaches λ_max from below: keep a margin, and never go
         // below the guaranteed (3.8) bound.
@@ -243,15 +240,7 @@ impl<const D: usize> Simulation<D> {
         let frame_every = scene.output_every.unwrap_or((total_steps / 100).max(1));
 
         let n = lattice.len();
-        let v0 = lattice.volumes[0];
-        let uniform_volume = lattice.volumes.iter().all(|&v| v == v0).then_some(v0);
-        let (family_weight, precracked) = standard::damage_weights(
-            &lattice.volumes,
-            uniform_volume,
-            &families,
-            &intact,
-            &quadrature,
-        );
+        let (family_weight, precracked) = scheme.damage_weights(&intact);
         let terms = precracked
             .iter()
             .map(|&w| NodeTerms {
@@ -403,17 +392,28 @@ impl<const D: usize> Simulation<D> {
         if max > 0.0 { 2.0 * max } else { 1.0 }
     }
 
+    /// The standard scheme over this simulation's discretization.
+    pub fn scheme(&self) -> Standard<'_, D> {
+        Standard {
+            reference: &self.lattice.positions,
+            volumes: &self.lattice.volumes,
+            uniform_volume: self.uniform_volume,
+            families: &self.families,
+            law: &self.law,
+            quadrature: &self.quadrature,
+        }
+    }
+
     fn update_accelerations(&mut self) {
-        self.broken += standard::pmb_forces(
-            &self.positions,
-            &self.lattice.volumes,
-            self.uniform_volume,
-            &self.families,
-            &mut self.intact,
-            &self.law,
-            &self.quadrature,
-            &mut self.terms,
-        );
+        let scheme = Standard {
+            reference: &self.lattice.positions,
+            volumes: &self.lattice.volumes,
+            uniform_volume: self.uniform_volume,
+            families: &self.families,
+            law: &self.law,
+            quadrature: &self.quadrature,
+        };
+        self.broken += scheme.forces(&self.positions, &mut self.intact, &mut self.terms);
         let inv_rho = 1.0 / self.scene.material.density;
         let body = &self.body_force;
         for (i, (a, t)) in self.accelerations.iter_mut().zip(&self.terms).enumerate() {
@@ -442,36 +442,17 @@ impl<const D: usize> Simulation<D> {
     /// Damage recomputed from the bond states in one pass over all bonds (a check of
     /// `damage`).
     pub fn damage_from_bonds(&self) -> Vec<f64> {
-        standard::damage(
-            &self.lattice.volumes,
-            &self.families,
-            &self.intact,
-            &self.quadrature,
-        )
+        self.scheme().damage(&self.intact)
     }
 
     pub fn strain_energy(&self) -> f64 {
-        standard::strain_energy(
-            &self.positions,
-            &self.lattice.volumes,
-            &self.families,
-            &self.intact,
-            &self.law,
-            &self.quadrature,
-        )
+        self.scheme().strain_energy(&self.positions, &self.intact)
     }
 
     /// Strain-energy density W_i of one node (J/m³).
     pub fn energy_density(&self, i: usize) -> f64 {
-        standard::energy_density(
-            i,
-            &self.positions,
-            &self.lattice.volumes,
-            &self.families,
-            &self.intact,
-            &self.law,
-            &self.quadrature,
-        )
+        self.scheme()
+            .energy_density(i, &self.positions, &self.intact)
     }
 
     pub fn kinetic_energy_and_momentum(&self) -> (f64, [f64; D]) {

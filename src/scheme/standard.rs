@@ -52,35 +52,195 @@ impl<const D: usize> Default for NodeTerms<D> {
     }
 }
 
-/// Per node, (Σ β V'_j over all bonds, Σ β V'_j over broken bonds) with V' = 1 where
-/// `uniform_volume` is set: the damage denominator and the numerator `pmb_forces` updates.
-pub fn damage_weights(
-    volumes: &[f64],
-    uniform_volume: Option<f64>,
-    families: &Families,
-    intact: &[u8],
-    quadrature: &Quadrature,
-) -> (Vec<f64>, Vec<f64>) {
-    (0..families.node_count())
-        .into_par_iter()
-        .map(|i| {
-            let (mut all, mut lost) = (0.0, 0.0);
-            for b in families.range(i) {
-                let j = families.neighbors[b] as usize;
-                let v = if uniform_volume.is_some() {
-                    1.0
-                } else {
-                    volumes[j]
-                };
-                let w = quadrature.beta(families.lengths[b]) * v;
-                all += w;
-                if intact[b] == 0 {
-                    lost += w;
+/// The standard scheme over one discretization: what every bond sum needs, borrowed from the
+/// simulation that owns it.
+#[derive(Debug, Clone, Copy)]
+pub struct Standard<'a, const D: usize> {
+    pub reference: &'a [[f64; D]],
+    pub volumes: &'a [f64],
+    /// Set when all node volumes are equal (saves a gather per bond).
+    pub uniform_volume: Option<f64>,
+    pub families: &'a Families,
+    pub law: &'a PmbLaw,
+    pub quadrature: &'a Quadrature,
+}
+
+impl<const D: usize> Standard<'_, D> {
+    /// V'_j of the damage weights: 1 where all volumes are equal, V_j otherwise.
+    fn damage_volume(&self, j: usize) -> f64 {
+        if self.uniform_volume.is_some() {
+            1.0
+        } else {
+            self.volumes[j]
+        }
+    }
+
+    /// Per node, (Σ β V'_j over all bonds, Σ β V'_j over broken bonds): the damage
+    /// denominator and the numerator `forces` keeps up to date.
+    pub fn damage_weights(&self, intact: &[u8]) -> (Vec<f64>, Vec<f64>) {
+        let families = self.families;
+        (0..families.node_count())
+            .into_par_iter()
+            .map(|i| {
+                let (mut all, mut lost) = (0.0, 0.0);
+                for b in families.range(i) {
+                    let j = families.neighbors[b] as usize;
+                    let w = self.quadrature.beta(families.lengths[b]) * self.damage_volume(j);
+                    all += w;
+                    if intact[b] == 0 {
+                        lost += w;
+                    }
                 }
+                (all, lost)
+            })
+            .unzip()
+    }
+
+    /// Force density on every node (N/m³) at `positions`, breaking bonds whose stretch
+    /// reaches s0, and each node's strain-energy density over the bonds still intact.
+    /// Returns the number of directed bonds broken in this call.
+    pub fn forces(
+        &self,
+        positions: &[[f64; D]],
+        intact: &mut [u8],
+        terms: &mut [NodeTerms<D>],
+    ) -> u64 {
+        let (families, law, quadrature) = (self.families, self.law, self.quadrature);
+        assert_eq!(positions.len(), families.node_count());
+        assert_eq!(intact.len(), families.bond_count());
+        let volumes = self.volumes;
+        let c = law.micromodulus;
+        let (h, reach, inv_dx) = (
+            law.horizon,
+            quadrature.horizon + 0.5 * quadrature.spacing,
+            1.0 / quadrature.spacing,
+        );
+        let beta = move |l: f64| ((reach - l) * inv_dx).clamp(0.0, 1.0);
+        let rows = Rows {
+            positions,
+            families,
+            quadrature,
+            first: 0,
+            s0: law.critical_stretch,
+        };
+        // One monomorphized loop per (influence, β, volume) combination: no branches inside.
+        macro_rules! with_volume {
+            ($weight:expr) => {
+                match self.uniform_volume {
+                    Some(v) => pmb_rows(&rows, intact, terms, move |l| $weight(l) * v, |_| 1.0),
+                    None => pmb_rows(&rows, intact, terms, $weight, |j| volumes[j]),
+                }
+            };
+        }
+        match (law.influence, quadrature.volume_correction) {
+            (Influence::Constant, true) => with_volume!(move |l: f64| c * beta(l)),
+            (Influence::Constant, false) => with_volume!(move |_l: f64| c),
+            (Influence::Linear, true) => {
+                with_volume!(move |l: f64| c * (1.0 - l / h).max(0.0) * beta(l))
             }
-            (all, lost)
-        })
-        .unzip()
+            (Influence::Linear, false) => with_volume!(move |l: f64| c * (1.0 - l / h).max(0.0)),
+        }
+    }
+
+    /// Σ_j ‖C(ξ)‖ β V_j of the stable-step bound (3.8), with ‖C‖ = ω c/‖ξ‖, per node.
+    pub fn stiffness_sums(&self) -> Vec<f64> {
+        let (families, law) = (self.families, self.law);
+        (0..families.node_count())
+            .into_par_iter()
+            .map(|i| {
+                families
+                    .range(i)
+                    .map(|b| {
+                        let l = families.lengths[b];
+                        let j = families.neighbors[b] as usize;
+                        influence(law.influence, l, law.horizon) * law.micromodulus / l
+                            * self.quadrature.beta(l)
+                            * self.volumes[j]
+                    })
+                    .sum()
+            })
+            .collect()
+    }
+
+    /// Damage φ_i = 1 − Σ μ β V_j / Σ β V_j, (2.36) discretized, in one pass over the bonds.
+    pub fn damage(&self, intact: &[u8]) -> Vec<f64> {
+        let (all, lost) = self.damage_weights(intact);
+        all.iter()
+            .zip(&lost)
+            .map(|(&a, &l)| if a > 0.0 { l / a } else { 0.0 })
+            .collect()
+    }
+
+    /// Strain-energy density of node i, W_i = ½ Σ_j w_ij β V_j over intact bonds,
+    /// (2.26)–(2.27).
+    pub fn energy_density(&self, i: usize, positions: &[[f64; D]], intact: &[u8]) -> f64 {
+        let families = self.families;
+        let mut w = 0.0;
+        for b in families.range(i) {
+            if intact[b] == 0 {
+                continue;
+            }
+            let j = families.neighbors[b] as usize;
+            let l = families.lengths[b];
+            let r = (0..D)
+                .map(|k| (positions[j][k] - positions[i][k]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            w += self.law.bond_energy((r - l) / l, l) * self.quadrature.beta(l) * self.volumes[j];
+        }
+        0.5 * w
+    }
+
+    /// Total strain energy Σ_i W_i V_i.
+    pub fn strain_energy(&self, positions: &[[f64; D]], intact: &[u8]) -> f64 {
+        (0..self.families.node_count())
+            .into_par_iter()
+            .map(|i| self.energy_density(i, positions, intact) * self.volumes[i])
+            .sum()
+    }
+
+    /// The linearized operator of (3.1) per unit mass, applied to a displacement field:
+    /// out_i = (1/ρ) Σ_j ω c (ξ⊗ξ/‖ξ‖³) (u_i − u_j) β V_j over intact bonds (the stiffness
+    /// the stable-step bound needs; positive semi-definite in the mass inner product).
+    pub fn apply_linearized(
+        &self,
+        intact: &[u8],
+        density: f64,
+        u: &[[f64; D]],
+        out: &mut [[f64; D]],
+    ) {
+        let (families, law, reference) = (self.families, self.law, self.reference);
+        let c = law.micromodulus / density;
+        out.par_iter_mut()
+            .enumerate()
+            .with_min_len(256)
+            .for_each(|(i, o)| {
+                let mut acc = [0.0; D];
+                for b in families.range(i) {
+                    if intact[b] == 0 {
+                        continue;
+                    }
+                    let j = families.neighbors[b] as usize;
+                    let l = families.lengths[b];
+                    let mut xi = [0.0; D];
+                    let mut proj = 0.0;
+                    for k in 0..D {
+                        xi[k] = reference[j][k] - reference[i][k];
+                        proj += xi[k] * (u[i][k] - u[j][k]);
+                    }
+                    let scale = c
+                        * influence(law.influence, l, law.horizon)
+                        * self.quadrature.beta(l)
+                        * self.volumes[j]
+                        / (l * l * l)
+                        * proj;
+                    for k in 0..D {
+                        acc[k] += scale * xi[k];
+                    }
+                }
+                *o = acc;
+            });
+    }
 }
 
 /// Bond state μ: 1 intact, 0 broken (2.34). One byte per directed bond.
@@ -88,107 +248,36 @@ pub fn intact_bonds(count: usize) -> Vec<u8> {
     vec![1; count]
 }
 
-/// Force density on every node (N/m³), breaking bonds whose stretch reaches s0, and each
-/// node's strain-energy density W_i over the bonds still intact. Returns the number of
-/// directed bonds broken in this call. `uniform_volume` (all V_j equal) saves a
-/// gather per bond.
-#[allow(clippy::too_many_arguments)]
-pub fn pmb_forces<const D: usize>(
-    positions: &[[f64; D]],
-    volumes: &[f64],
-    uniform_volume: Option<f64>,
-    families: &Families,
-    intact: &mut [u8],
-    law: &PmbLaw,
-    quadrature: &Quadrature,
-    terms: &mut [NodeTerms<D>],
-) -> u64 {
-    assert_eq!(positions.len(), families.node_count());
-    assert_eq!(intact.len(), families.bond_count());
-    let c = law.micromodulus;
-    let (h, reach, inv_dx) = (
-        law.horizon,
-        quadrature.horizon + 0.5 * quadrature.spacing,
-        1.0 / quadrature.spacing,
-    );
-    let beta = move |l: f64| ((reach - l) * inv_dx).clamp(0.0, 1.0);
-    // One monomorphized loop per (influence, β, volume) combination: no branches inside.
-    macro_rules! with_volume {
-        ($weight:expr) => {
-            match uniform_volume {
-                Some(v) => pmb_rows(
-                    positions,
-                    families,
-                    intact,
-                    law,
-                    terms,
-                    quadrature,
-                    move |l| $weight(l) * v,
-                    |_| 1.0,
-                ),
-                None => pmb_rows(
-                    positions,
-                    families,
-                    intact,
-                    law,
-                    terms,
-                    quadrature,
-                    $weight,
-                    |j| volumes[j],
-                ),
-            }
-        };
-    }
-    match (law.influence, quadrature.volume_correction) {
-        (Influence::Constant, true) => with_volume!(move |l: f64| c * beta(l)),
-        (Influence::Constant, false) => with_volume!(move |_l: f64| c),
-        (Influence::Linear, true) => {
-            with_volume!(move |l: f64| c * (1.0 - l / h).max(0.0) * beta(l))
-        }
-        (Influence::Linear, false) => with_volume!(move |l: f64| c * (1.0 - l / h).max(0.0)),
-    }
-}
-
 /// Nodes per task of the force loop.
 const ROWS_PER_TASK: usize = 512;
 
-/// The gather loop of `pmb_forces`: f_i = Σ_j μ ω c s β V_j e_ij, (2.33) in the sum (3.1).
-/// Node ranges are split recursively (no allocation) so each task owns its rows of `force`
-/// and of the bond states.
+/// The gather loop of `Standard::forces`: f_i = Σ_j μ ω c s β V_j e_ij, (2.33) in the sum
+/// (3.1). Node ranges are split recursively (no allocation) so each task owns its rows of the
+/// node terms and of the bond states.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn pmb_rows<const D: usize>(
-    positions: &[[f64; D]],
-    families: &Families,
+    rows: &Rows<D>,
     intact: &mut [u8],
-    law: &PmbLaw,
     terms: &mut [NodeTerms<D>],
-    quadrature: &Quadrature,
     weight: impl Fn(f64) -> f64 + Sync,
     volume: impl Fn(usize) -> f64 + Sync,
 ) -> u64 {
-    let s0 = law.critical_stretch;
     #[cfg(target_arch = "x86_64")]
     let avx2 = std::arch::is_x86_feature_detected!("avx2");
     let kernel = |first: usize, terms: &mut [NodeTerms<D>], state: &mut [u8]| -> u64 {
-        let rows = Rows {
-            positions,
-            families,
-            quadrature,
-            first,
-            s0,
-        };
+        let block = Rows { first, ..*rows };
         #[cfg(target_arch = "x86_64")]
         if avx2 {
             // SAFETY: the CPU supports AVX2 (detected above).
-            return unsafe { rows_avx2(&rows, terms, state, &weight, &volume) };
+            return unsafe { rows_avx2(&block, terms, state, &weight, &volume) };
         }
-        rows_portable(&rows, terms, state, &weight, &volume)
+        rows_portable(&block, terms, state, &weight, &volume)
     };
-    split_rows(families, 0, terms, intact, &kernel)
+    split_rows(rows.families, 0, terms, intact, &kernel)
 }
 
 /// A block of consecutive rows of the force loop.
+#[derive(Clone, Copy)]
 struct Rows<'a, const D: usize> {
     positions: &'a [[f64; D]],
     families: &'a Families,
@@ -381,142 +470,6 @@ where
     a + b
 }
 
-/// Σ_j ‖C(ξ)‖ β V_j of the stable-step bound (3.8), with ‖C‖ = ω c/‖ξ‖, per node.
-pub fn stiffness_sums(
-    volumes: &[f64],
-    families: &Families,
-    law: &PmbLaw,
-    quadrature: &Quadrature,
-) -> Vec<f64> {
-    (0..families.node_count())
-        .into_par_iter()
-        .map(|i| {
-            families
-                .range(i)
-                .map(|b| {
-                    let l = families.lengths[b];
-                    let j = families.neighbors[b] as usize;
-                    influence(law.influence, l, law.horizon) * law.micromodulus / l
-                        * quadrature.beta(l)
-                        * volumes[j]
-                })
-                .sum()
-        })
-        .collect()
-}
-
-/// Damage φ_i = 1 − Σ μ β V_j / Σ β V_j, (2.36) discretized.
-pub fn damage(
-    volumes: &[f64],
-    families: &Families,
-    intact: &[u8],
-    quadrature: &Quadrature,
-) -> Vec<f64> {
-    (0..families.node_count())
-        .into_par_iter()
-        .map(|i| {
-            let (mut all, mut kept) = (0.0, 0.0);
-            for b in families.range(i) {
-                let w =
-                    quadrature.beta(families.lengths[b]) * volumes[families.neighbors[b] as usize];
-                all += w;
-                if intact[b] != 0 {
-                    kept += w;
-                }
-            }
-            if all > 0.0 { 1.0 - kept / all } else { 0.0 }
-        })
-        .collect()
-}
-
-/// Strain-energy density of node i, W_i = ½ Σ_j w_ij β V_j over intact bonds, (2.26)–(2.27).
-pub fn energy_density<const D: usize>(
-    i: usize,
-    positions: &[[f64; D]],
-    volumes: &[f64],
-    families: &Families,
-    intact: &[u8],
-    law: &PmbLaw,
-    quadrature: &Quadrature,
-) -> f64 {
-    let mut w = 0.0;
-    for b in families.range(i) {
-        if intact[b] == 0 {
-            continue;
-        }
-        let j = families.neighbors[b] as usize;
-        let l = families.lengths[b];
-        let r = (0..D)
-            .map(|k| (positions[j][k] - positions[i][k]).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        w += law.bond_energy((r - l) / l, l) * quadrature.beta(l) * volumes[j];
-    }
-    0.5 * w
-}
-
-/// Total strain energy Σ_i W_i V_i.
-pub fn strain_energy<const D: usize>(
-    positions: &[[f64; D]],
-    volumes: &[f64],
-    families: &Families,
-    intact: &[u8],
-    law: &PmbLaw,
-    quadrature: &Quadrature,
-) -> f64 {
-    (0..families.node_count())
-        .into_par_iter()
-        .map(|i| {
-            energy_density(i, positions, volumes, families, intact, law, quadrature) * volumes[i]
-        })
-        .sum()
-}
-
-/// The linearized operator of (3.1) per unit mass, applied to a displacement field:
-/// out_i = (1/ρ) Σ_j ω c (ξ⊗ξ/‖ξ‖³) (u_i − u_j) β V_j over intact bonds (the stiffness the
-/// stable-step bound needs; positive semi-definite in the mass inner product).
-#[allow(clippy::too_many_arguments)]
-pub fn apply_linearized<const D: usize>(
-    reference: &[[f64; D]],
-    volumes: &[f64],
-    families: &Families,
-    intact: &[u8],
-    law: &PmbLaw,
-    quadrature: &Quadrature,
-    density: f64,
-    u: &[[f64; D]],
-    out: &mut [[f64; D]],
-) {
-    let c = law.micromodulus / density;
-    out.par_iter_mut()
-        .enumerate()
-        .with_min_len(256)
-        .for_each(|(i, o)| {
-            let mut acc = [0.0; D];
-            for b in families.range(i) {
-                if intact[b] == 0 {
-                    continue;
-                }
-                let j = families.neighbors[b] as usize;
-                let l = families.lengths[b];
-                let mut xi = [0.0; D];
-                let mut proj = 0.0;
-                for k in 0..D {
-                    xi[k] = reference[j][k] - reference[i][k];
-                    proj += xi[k] * (u[i][k] - u[j][k]);
-                }
-                let scale =
-                    c * influence(law.influence, l, law.horizon) * quadrature.beta(l) * volumes[j]
-                        / (l * l * l)
-                        * proj;
-                for k in 0..D {
-                    acc[k] += scale * xi[k];
-                }
-            }
-            *o = acc;
-        });
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -563,16 +516,15 @@ mod tests {
             pool.install(|| {
                 let mut intact = intact_bonds(families.bond_count());
                 let mut terms = vec![NodeTerms::default(); lattice.len()];
-                let broken = pmb_forces(
-                    &positions,
-                    &lattice.volumes,
-                    Some(1.0),
-                    &families,
-                    &mut intact,
-                    &law,
-                    &quadrature,
-                    &mut terms,
-                );
+                let scheme = Standard {
+                    reference: &lattice.positions,
+                    volumes: &lattice.volumes,
+                    uniform_volume: Some(1.0),
+                    families: &families,
+                    law: &law,
+                    quadrature: &quadrature,
+                };
+                let broken = scheme.forces(&positions, &mut intact, &mut terms);
                 (broken, intact, terms)
             })
         };
