@@ -111,6 +111,23 @@ pub fn build(scene: &Scene) -> Result<Box<dyn Stepper>, SceneError> {
     })
 }
 
+fn standard_view<'a, const D: usize>(
+    lattice: &'a Lattice<D>,
+    families: &'a Families,
+    law: &'a PmbLaw,
+    quadrature: &'a Quadrature,
+    uniform_volume: Option<f64>,
+) -> Standard<'a, D> {
+    Standard {
+        reference: &lattice.positions,
+        volumes: &lattice.volumes,
+        uniform_volume,
+        families,
+        law,
+        quadrature,
+    }
+}
+
 /// Power iterations for the stable-step estimate, and the margin on the eigenvalue found.
 const POWER_ITERATIONS: usize = 60;
 const SPECTRAL_MARGIN: f64 = 1.02;
@@ -200,14 +217,7 @@ impl<const D: usize> Simulation<D> {
         };
         let v0 = lattice.volumes[0];
         let uniform_volume = lattice.volumes.iter().all(|&v| v == v0).then_some(v0);
-        let scheme = Standard {
-            reference: &lattice.positions,
-            volumes: &lattice.volumes,
-            uniform_volume,
-            families: &families,
-            law: &law,
-            quadrature: &quadrature,
-        };
+        let scheme = standard_view(&lattice, &families, &law, &quadrature, uniform_volume);
         let gershgorin_dt = integrate::stable_step(m.density, &scheme.stiffness_sums());
         let masses: Vec<f64> = lattice.volumes.iter().map(|v| v * m.density).collect();
         let lambda_max =
@@ -394,25 +404,24 @@ impl<const D: usize> Simulation<D> {
 
     /// The standard scheme over this simulation's discretization.
     pub fn scheme(&self) -> Standard<'_, D> {
-        Standard {
-            reference: &self.lattice.positions,
-            volumes: &self.lattice.volumes,
-            uniform_volume: self.uniform_volume,
-            families: &self.families,
-            law: &self.law,
-            quadrature: &self.quadrature,
-        }
+        standard_view(
+            &self.lattice,
+            &self.families,
+            &self.law,
+            &self.quadrature,
+            self.uniform_volume,
+        )
     }
 
     fn update_accelerations(&mut self) {
-        let scheme = Standard {
-            reference: &self.lattice.positions,
-            volumes: &self.lattice.volumes,
-            uniform_volume: self.uniform_volume,
-            families: &self.families,
-            law: &self.law,
-            quadrature: &self.quadrature,
-        };
+        // Built from the fields it needs, so `intact` and `terms` stay free to borrow.
+        let scheme = standard_view(
+            &self.lattice,
+            &self.families,
+            &self.law,
+            &self.quadrature,
+            self.uniform_volume,
+        );
         self.broken += scheme.forces(&self.positions, &mut self.intact, &mut self.terms);
         let inv_rho = 1.0 / self.scene.material.density;
         let body = &self.body_force;
