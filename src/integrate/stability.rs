@@ -45,6 +45,45 @@ pub fn max_eigenvalue<const D: usize>(
     lambda
 }
 
+/// Spectral radius of a general (possibly non-symmetric) operator on a scalar field, by power
+/// iteration: the largest growth ‖A v‖/‖v‖ over the last quarter of the iterations (a
+/// complex dominant pair makes the ratio oscillate).
+pub fn spectral_radius(
+    n: usize,
+    iterations: usize,
+    mut apply: impl FnMut(&[f64], &mut [f64]),
+) -> f64 {
+    let mut rng = SplitMix64(0xD1FF);
+    let mut v: Vec<f64> = (0..n).map(|_| rng.next_f64() - 0.5).collect();
+    let mut w = vec![0.0; n];
+    let mut radius: f64 = 0.0;
+    for it in 0..iterations {
+        let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if norm == 0.0 || !norm.is_finite() {
+            break;
+        }
+        v.iter_mut().for_each(|x| *x /= norm);
+        w.iter_mut().for_each(|x| *x = 0.0);
+        apply(&v, &mut w);
+        let growth = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if it >= iterations * 3 / 4 {
+            radius = radius.max(growth);
+        }
+        std::mem::swap(&mut v, &mut w);
+    }
+    radius
+}
+
+/// Forward Euler's limit 2/ρ for an operator whose eigenvalues are real and ≤ 0 with
+/// spectral radius ρ (diffusion).
+pub fn euler_limit(radius: f64) -> f64 {
+    if radius > 0.0 {
+        2.0 / radius
+    } else {
+        f64::INFINITY
+    }
+}
+
 /// Velocity-Verlet's stability limit 2/√λ_max for the largest eigenvalue λ_max of the
 /// mass-normalized stiffness.
 pub fn verlet_limit(lambda_max: f64) -> f64 {

@@ -7,8 +7,10 @@
 use rayon::prelude::*;
 
 use crate::family::{Families, partial_volume};
+use crate::model::diffusion::DiffusionKernel;
 use crate::model::pmb::{PmbLaw, influence};
 use crate::scene::Influence;
+use crate::scheme::ScalarOperator;
 
 /// Quadrature data shared by every bond: β on/off, spacing, horizon.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -241,6 +243,37 @@ impl<const D: usize> Standard<'_, D> {
                 *o = acc;
             });
     }
+}
+
+/// The standard diffusion operator (3.4), Ċ_i = Σ_j κ ω (C_j − C_i)/‖ξ‖^q β V_j, as sparse rows
+/// (the node itself first, with minus the sum of the others) for the nodes of `rows`.
+pub fn diffusion_operator<const D: usize>(
+    rows: &[u32],
+    volumes: &[f64],
+    families: &Families,
+    quadrature: &Quadrature,
+    kernel: &DiffusionKernel,
+) -> ScalarOperator {
+    let blocks = rows
+        .par_iter()
+        .map(|&i| {
+            let range = families.range(i as usize);
+            let mut columns = Vec::with_capacity(range.len() + 1);
+            let mut weights = Vec::with_capacity(range.len() + 1);
+            columns.push(i);
+            weights.push(0.0);
+            for b in range {
+                let j = families.neighbors[b];
+                let l = families.lengths[b];
+                let w = kernel.weight(l) * quadrature.beta(l) * volumes[j as usize];
+                columns.push(j);
+                weights.push(w);
+                weights[0] -= w;
+            }
+            (columns, weights)
+        })
+        .collect();
+    ScalarOperator::from_rows(rows, blocks)
 }
 
 /// Bond state μ: 1 intact, 0 broken (2.34). One byte per directed bond.

@@ -9,6 +9,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::family::Families;
 use crate::scene::Influence;
+use crate::scheme::ScalarOperator;
 
 /// Monomials ξ^α of total degree ≤ `order` in `dim` dimensions, ordered by degree and, within
 /// a degree, by decreasing x then y exponent: 3D C² is (1, x, y, z, x², xy, xz, y², yz, z²)
@@ -313,65 +314,30 @@ pub fn scale_to_fit(basis: &Basis, l: &[f64], horizon: f64) -> DVector<f64> {
     )
 }
 
-/// Precomputed per-node weights of a scalar WLS operator (diffusion): row r gives
-/// (L Q_i)_j for the collocation nodes j of node `rows[r]`, so Ċ_i = Σ_j w_ij C_j (§3.4).
-#[derive(Debug, Clone)]
-pub struct ScalarOperator {
-    pub rows: Vec<u32>,
-    pub offsets: Vec<usize>,
-    pub columns: Vec<u32>,
-    pub weights: Vec<f64>,
-}
-
-impl ScalarOperator {
-    /// Builds the rows of `rows` in parallel; the first node whose fit fails is reported.
-    pub fn build<const D: usize>(
-        rows: &[u32],
-        positions: &[[f64; D]],
-        families: &Families,
-        basis: &Basis,
-        l: &[f64],
-        horizon: f64,
-        k_aux: usize,
-    ) -> Result<Self, FitError> {
-        use rayon::prelude::*;
-        let l_scaled = scale_to_fit(basis, l, horizon).transpose();
-        let blocks: Vec<(Vec<u32>, Vec<f64>)> = rows
-            .par_iter()
-            .map(|&i| {
-                let set = collocation_set(i as usize, positions, families, horizon, k_aux);
-                let q = fit_matrix(i as usize, &set, positions, basis, horizon)?;
-                let w = &l_scaled * q;
-                Ok((set, w.iter().copied().collect()))
-            })
-            .collect::<Result<_, FitError>>()?;
-        let mut offsets = Vec::with_capacity(rows.len() + 1);
-        offsets.push(0);
-        let (mut columns, mut weights) = (Vec::new(), Vec::new());
-        for (set, w) in blocks {
-            columns.extend(set);
-            weights.extend(w);
-            offsets.push(columns.len());
-        }
-        Ok(ScalarOperator {
-            rows: rows.to_vec(),
-            offsets,
-            columns,
-            weights,
+/// Per-node weight rows of the WLS diffusion operator (§3.4): row of node i holds
+/// (L_C Q_i)_j for its collocation nodes j. Rows are built in parallel; the first node whose
+/// fit fails is reported.
+pub fn diffusion_operator<const D: usize>(
+    rows: &[u32],
+    positions: &[[f64; D]],
+    families: &Families,
+    basis: &Basis,
+    l: &[f64],
+    horizon: f64,
+    k_aux: usize,
+) -> Result<ScalarOperator, FitError> {
+    use rayon::prelude::*;
+    let l_scaled = scale_to_fit(basis, l, horizon).transpose();
+    let blocks: Vec<(Vec<u32>, Vec<f64>)> = rows
+        .par_iter()
+        .map(|&i| {
+            let set = collocation_set(i as usize, positions, families, horizon, k_aux);
+            let q = fit_matrix(i as usize, &set, positions, basis, horizon)?;
+            let w = &l_scaled * q;
+            Ok((set, w.iter().copied().collect()))
         })
-    }
-
-    /// out[rows[r]] = Σ_j w_rj values[j] for every row.
-    pub fn apply(&self, values: &[f64], out: &mut [f64]) {
-        for (r, &i) in self.rows.iter().enumerate() {
-            let range = self.offsets[r]..self.offsets[r + 1];
-            out[i as usize] = self.columns[range.clone()]
-                .iter()
-                .zip(&self.weights[range])
-                .map(|(&j, w)| w * values[j as usize])
-                .sum();
-        }
-    }
+        .collect::<Result<_, FitError>>()?;
+    Ok(ScalarOperator::from_rows(rows, blocks))
 }
 
 #[cfg(test)]
@@ -637,7 +603,7 @@ mod tests {
         let basis = Basis::new(2, 2);
         let (kappa, q) = (1.5, 2.0);
         let l = diffusion_l(&basis, kappa, q, horizon, Influence::Constant);
-        let op = ScalarOperator::build(
+        let op = diffusion_operator(
             &interior,
             &lattice.positions,
             &families,
