@@ -17,6 +17,8 @@ use peridyn::scheme::wls::{self, Basis};
 #[derive(Clone, Copy, Debug)]
 enum Scheme {
     Standard,
+    /// The standard scheme without the partial-volume factor β.
+    StandardWithoutBeta,
     /// (order, auxiliary grid factor k_aux)
     Wls(usize, usize),
 }
@@ -41,6 +43,45 @@ fn one_minus_cos_integral(a: f64) -> f64 {
 
 /// Relative ℓ² error (3.79) over the unknown nodes, solving 0 = L u + b.
 fn solve(horizon: f64, m: usize, scheme: Scheme, body: impl Fn(f64, f64) -> f64, c: f64) -> f64 {
+    solve_with(horizon, m, scheme, body, c, |k, rhs| {
+        k.lu().solve(&rhs).expect("a regular stiffness matrix")
+    })
+}
+
+/// Banded LU without pivoting (the standard scheme's matrix is symmetric negative definite);
+/// `band` is the half bandwidth.
+fn banded_solve(mut a: DMatrix<f64>, mut b: DVector<f64>, band: usize) -> DVector<f64> {
+    let n = b.len();
+    for p in 0..n {
+        let end = (p + band + 1).min(n);
+        for r in p + 1..end {
+            let f = a[(r, p)] / a[(p, p)];
+            if f == 0.0 {
+                continue;
+            }
+            for col in p..end {
+                a[(r, col)] -= f * a[(p, col)];
+            }
+            b[r] -= f * b[p];
+        }
+    }
+    let mut x = DVector::<f64>::zeros(n);
+    for p in (0..n).rev() {
+        let end = (p + band + 1).min(n);
+        let sum: f64 = (p + 1..end).map(|col| a[(p, col)] * x[col]).sum();
+        x[p] = (b[p] - sum) / a[(p, p)];
+    }
+    x
+}
+
+fn solve_with(
+    horizon: f64,
+    m: usize,
+    scheme: Scheme,
+    body: impl Fn(f64, f64) -> f64,
+    c: f64,
+    linear_solve: impl Fn(DMatrix<f64>, DVector<f64>) -> DVector<f64>,
+) -> f64 {
     let dx = horizon / m as f64;
     let n_in = (200.0 / dx).round() as usize + 1;
     let layer = m; // nodes per Dirichlet layer of width δ
@@ -51,7 +92,7 @@ fn solve(horizon: f64, m: usize, scheme: Scheme, body: impl Fn(f64, f64) -> f64,
     let unknown: Vec<u32> = (layer as u32 + 1..(layer + n_in - 1) as u32).collect();
     let families = Families::build(&positions, horizon * (1.0 + 1e-9));
     let op: ScalarOperator = match scheme {
-        Scheme::Standard => {
+        Scheme::Standard | Scheme::StandardWithoutBeta => {
             let kernel = DiffusionKernel {
                 diffusivity: c,
                 exponent: 1.0,
@@ -61,7 +102,7 @@ fn solve(horizon: f64, m: usize, scheme: Scheme, body: impl Fn(f64, f64) -> f64,
             let quadrature = Quadrature {
                 spacing: dx,
                 horizon,
-                volume_correction: true,
+                volume_correction: matches!(scheme, Scheme::Standard),
             };
             let volumes = vec![dx; positions.len()];
             standard::diffusion_operator::<1>(&unknown, &volumes, &families, &quadrature, &kernel)
@@ -88,7 +129,7 @@ fn solve(horizon: f64, m: usize, scheme: Scheme, body: impl Fn(f64, f64) -> f64,
             }
         }
     }
-    let u = k.lu().solve(&rhs).expect("a regular stiffness matrix");
+    let u = linear_solve(k, rhs);
     let (mut num, mut den) = (0.0, 0.0);
     for (r, &i) in unknown.iter().enumerate() {
         let e = exact(positions[i as usize][0]);
@@ -178,7 +219,44 @@ fn delta_convergence() {
             assert!(w[1][s] < w[0][s], "WLS column {s}: {table:?}");
         }
     }
-    // The standard scheme's failure to converge shows only once the model error O(δ²) falls
-    // below its fixed-m quadrature error (≈ 1e-4 at m = 12), i.e. for δ < 0.5: that needs a
-    // banded or sparse solver (10⁴ unknowns), not this dense one.
+    // The standard scheme's behaviour at small δ needs more unknowns and a
+    // banded solve: see `standard_scheme_under_delta_refinement`.
+}
+
+/// Under δ-refinement at m = 12 (δ = 1 … 0.25, up to 9 600 unknowns, banded solve) the
+/// standard scheme WITH β converges at second order: in 1D at integer m, β(δ) = ½ makes the
+/// discrete second moment Σ β_n n Δx² = δ²/2 exact, so the u'' coefficient is exact. WITHOUT β
+/// the moment is m(m+1)/2 Δx² (1/m too large) and the error stalls: that scheme is not
+/// asymptotically compatible. (The thesis reports non-convergence for its standard scheme.)
+#[test]
+fn standard_scheme_under_delta_refinement() {
+    let m = 12;
+    let errors = |scheme: Scheme| -> Vec<f64> {
+        [1.0f64, 0.5, 0.25]
+            .iter()
+            .map(|&d| {
+                let c = 2.0 / (d * d);
+                let e = solve_with(
+                    d,
+                    m,
+                    scheme,
+                    |x, _| (x / 10.0).sin() / 100.0,
+                    c,
+                    |k, r| banded_solve(k, r, m),
+                );
+                eprintln!("δ = {d}: {scheme:?} {e:.3e}");
+                e
+            })
+            .collect()
+    };
+    let with_beta = errors(Scheme::Standard);
+    for w in with_beta.windows(2) {
+        assert!(w[1] < w[0] / 3.0, "second order with β: {with_beta:?}");
+    }
+    let without_beta = errors(Scheme::StandardWithoutBeta);
+    assert!(
+        without_beta[2] > 0.5 * without_beta[0],
+        "stalls without β: {without_beta:?}"
+    );
+    assert!(without_beta[2] > 100.0 * with_beta[2]);
 }
