@@ -107,6 +107,18 @@ pub fn angular_moment(beta: [u32; 3], dim: usize) -> f64 {
         / gamma_half(total + dim as u32)
 }
 
+/// One L entry per monomial of degree n ≥ 1; the constant monomial gives 0 (§3.5).
+fn per_monomial(basis: &Basis, entry: impl Fn([u32; 3], u32) -> f64) -> Vec<f64> {
+    basis
+        .exponents
+        .iter()
+        .map(|&alpha| {
+            let n: u32 = alpha.iter().sum();
+            if n == 0 { 0.0 } else { entry(alpha, n) }
+        })
+        .collect()
+}
+
 /// L_C of diffusion with kernel κ ω ‖ξ‖^{−q} (3.60)–(3.67): L_C[α] = κ R(n − q + n_d − 1) S(α).
 pub fn diffusion_l(
     basis: &Basis,
@@ -116,19 +128,11 @@ pub fn diffusion_l(
     influence: Influence,
 ) -> Vec<f64> {
     let nd = basis.dim as f64;
-    basis
-        .exponents
-        .iter()
-        .map(|&alpha| {
-            let n: u32 = alpha.iter().sum();
-            if n == 0 {
-                return 0.0;
-            }
-            kappa
-                * radial_moment(n as f64 - q + nd - 1.0, horizon, influence)
-                * angular_moment(alpha, basis.dim)
-        })
-        .collect()
+    per_monomial(basis, |alpha, n| {
+        kappa
+            * radial_moment(n as f64 - q + nd - 1.0, horizon, influence)
+            * angular_moment(alpha, basis.dim)
+    })
 }
 
 /// L blocks of linearized bond-based elasticity (3.54)–(3.56): entry [k][l][α] is the
@@ -141,21 +145,13 @@ pub fn bond_l(basis: &Basis, c: f64, horizon: f64, influence: Influence) -> Vec<
         .map(|k| {
             (0..d)
                 .map(|l| {
-                    basis
-                        .exponents
-                        .iter()
-                        .map(|&alpha| {
-                            let n: u32 = alpha.iter().sum();
-                            if n == 0 {
-                                return 0.0;
-                            }
-                            let mut beta = alpha;
-                            beta[k] += 1;
-                            beta[l] += 1;
-                            c * radial_moment(n as f64 + nd - 2.0, horizon, influence)
-                                * angular_moment(beta, d)
-                        })
-                        .collect()
+                    per_monomial(basis, |alpha, n| {
+                        let mut beta = alpha;
+                        beta[k] += 1;
+                        beta[l] += 1;
+                        c * radial_moment(n as f64 + nd - 2.0, horizon, influence)
+                            * angular_moment(beta, d)
+                    })
                 })
                 .collect()
         })
