@@ -304,3 +304,18 @@ fn interrupted_recording_is_readable_and_complete_up_to_the_signal() {
         "every frame logged before the signal is in the file"
     );
 }
+
+#[test]
+fn a_scene_too_large_for_memory_is_refused_before_building() {
+    let text = GOOD
+        .replace(
+            "box = { min = [0.0, 0.0], max = [\"20 mm\", \"10 mm\"] }",
+            "box = { min = [0.0, 0.0], max = [\"20 m\", \"10 m\"] }",
+        )
+        .replace("horizon = \"3 dx\"", "horizon = \"24 dx\"");
+    assert_clear_error(
+        "huge.toml",
+        &text,
+        &["discretization.horizon", "directed bonds", "GB"],
+    );
+}

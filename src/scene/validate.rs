@@ -7,6 +7,9 @@ use super::units::{Measure, Relative};
 use super::*;
 use crate::model::pmb;
 
+/// Directed bonds a scene may have (≈ 13 bytes each: 16 GB).
+const MAX_BONDS: f64 = 1.2e9;
+
 pub(super) fn validate(
     p: &Preset,
     ctx: &ErrorContext,
@@ -58,6 +61,25 @@ pub(super) fn validate(
         return Err(ctx.error(
             "discretization.spacing",
             format!("gives about {nodes_estimate:.3e} lattice nodes; the limit is 5e7"),
+        ));
+    }
+    // Family size ≈ volume of the ball in cells; 13 bytes per directed bond.
+    let m = horizon / spacing;
+    let family = match dim {
+        1 => 2.0 * m,
+        2 => std::f64::consts::PI * m * m,
+        _ => 4.0 / 3.0 * std::f64::consts::PI * m.powi(3),
+    };
+    let bonds_estimate = nodes_estimate * family;
+    if bonds_estimate > MAX_BONDS {
+        return Err(ctx.error(
+            "discretization.horizon",
+            format!(
+                "gives about {bonds_estimate:.3e} directed bonds ({:.0} GB); the limit is {MAX_BONDS:.1e} \
+                 ({:.0} GB): lower the horizon factor or coarsen the spacing",
+                bonds_estimate * 13.0 / 1e9,
+                MAX_BONDS * 13.0 / 1e9
+            ),
         ));
     }
 
