@@ -310,7 +310,7 @@ fn a_scene_too_large_for_memory_is_refused_before_building() {
     let text = GOOD
         .replace(
             "box = { min = [0.0, 0.0], max = [\"20 mm\", \"10 mm\"] }",
-            "box = { min = [0.0, 0.0], max = [\"20 m\", \"10 m\"] }",
+            "box = { min = [0.0, 0.0], max = [\"2 m\", \"1 m\"] }",
         )
         .replace("horizon = \"3 dx\"", "horizon = \"24 dx\"");
     assert_clear_error(
