@@ -98,10 +98,7 @@ pub fn run(variant: Option<&str>, steps: Option<u64>) -> Result<String, String> 
         .unwrap_or(logged.summary.wall_seconds);
 
     let info = &logged.summary.info;
-    let node_bytes = (5 * info.dim + 1) * 8 + 8; // reference, position, velocity, acceleration, force, volume, CSR offset
-    let bytes_per_bond = info.bytes_per_bond
-        + (node_bytes as f64 * info.nodes as f64) / info.bonds as f64
-        - 8.0 * info.nodes as f64 / info.bonds as f64;
+    let bytes_per_bond = info.bytes_per_bond;
     let mut out = format!(
         "## peridyn bench: {PRESET}{}\n\n{} nodes, {} directed bonds, {} steps, Δt = {:.2e} s, {} hardware threads\n\n\
          | case | threads | wall [s] | bond evaluations/s (whole step) | bond evaluations/s (force stage) | broken bonds |\n\
@@ -131,8 +128,8 @@ pub fn run(variant: Option<&str>, steps: Option<u64>) -> Result<String, String> 
         "\nlogging at the default cadence (a frame every {} steps): {:.1} % of wall time \
          ({:.1} % building frames on the solver thread, {:.1} % busy on the logging thread); \
          the recorded run took {:+.1} % wall time against the same run without a recording\n\
-         memory: {:.2} bytes per directed bond (4 index + 8 length + 1 state + per-node arrays \
-         amortized)\n",
+         memory: {:.2} bytes per directed bond (4 index + 8 length + 1 state + all per-node \
+         arrays amortized)\n",
         info.frame_every,
         100.0 * (logged.summary.frame_seconds + logged.logging_thread_seconds) / wall,
         100.0 * logged.summary.frame_seconds / wall,

@@ -72,12 +72,6 @@ impl Families {
     pub fn range(&self, i: usize) -> std::ops::Range<usize> {
         self.offsets[i]..self.offsets[i + 1]
     }
-
-    /// Bytes held per directed bond by the family arrays (indices and lengths).
-    pub fn bytes_per_bond(&self) -> f64 {
-        let bytes = self.neighbors.len() * 4 + self.lengths.len() * 8 + self.offsets.len() * 8;
-        bytes as f64 / self.bond_count().max(1) as f64
-    }
 }
 
 /// Family search radius: δ plus a small tolerance, or δ + Δx/2.

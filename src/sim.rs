@@ -86,6 +86,7 @@ pub struct SimInfo {
     pub gershgorin_dt: f64,
     pub total_steps: u64,
     pub frame_every: u64,
+    /// Solver memory (bond and node arrays) per directed bond.
     pub bytes_per_bond: f64,
 }
 
@@ -458,6 +459,23 @@ impl<const D: usize> Simulation<D> {
         self.scheme().strain_energy(&self.positions, &self.intact)
     }
 
+    /// Bytes held by the solver state: bond arrays and per-node arrays.
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(self.families.neighbors.as_slice())
+            + size_of_val(self.families.lengths.as_slice())
+            + size_of_val(self.families.offsets.as_slice())
+            + size_of_val(self.intact.as_slice())
+            + size_of_val(self.lattice.positions.as_slice())
+            + size_of_val(self.lattice.volumes.as_slice())
+            + size_of_val(self.positions.as_slice())
+            + size_of_val(self.velocities.as_slice())
+            + size_of_val(self.accelerations.as_slice())
+            + size_of_val(self.terms.as_slice())
+            + size_of_val(self.family_weight.as_slice())
+            + size_of_val(self.body_force.as_slice())
+    }
+
     /// Strain-energy density W_i of one node (J/m³).
     pub fn energy_density(&self, i: usize) -> f64 {
         self.scheme()
@@ -606,7 +624,7 @@ impl<const D: usize> Stepper for Simulation<D> {
             gershgorin_dt: self.gershgorin_dt,
             total_steps: self.total_steps,
             frame_every: self.frame_every,
-            bytes_per_bond: self.families.bytes_per_bond() + 1.0,
+            bytes_per_bond: self.memory_bytes() as f64 / self.families.bond_count().max(1) as f64,
         }
     }
 
