@@ -22,18 +22,10 @@ pub struct Frame {
 }
 
 impl Frame {
-    pub fn node_count(&self) -> usize {
-        self.positions.len() / self.dim.max(1)
-    }
-
     pub fn scalar(&self, name: &str) -> Option<f64> {
         self.scalars
             .iter()
             .find(|(n, _)| n == name)
             .map(|(_, v)| *v)
-    }
-
-    pub fn field(&self, name: &str) -> Option<&NodeField> {
-        self.fields.iter().find(|f| f.name == name)
     }
 }

@@ -59,10 +59,6 @@ pub struct StageTimers {
 }
 
 impl StageTimers {
-    pub fn total(&self) -> WallDuration {
-        self.kick_drift + self.forces + self.constraints + self.kick
-    }
-
     pub fn named(&self) -> [(&'static str, WallDuration); 4] {
         [
             ("kick_drift", self.kick_drift),
@@ -382,11 +378,15 @@ impl<const D: usize> Simulation<D> {
         Ok(())
     }
 
-    /// Held velocities and displacements (velocity layers also move the node).
-    fn apply_constraints(&mut self) {
+    fn hold_velocities(&mut self) {
         for &(i, a, value) in &self.held_velocity {
             self.velocities[i as usize][a as usize] = value;
         }
+    }
+
+    /// Held velocities and displacements (velocity layers also move the node).
+    fn apply_constraints(&mut self) {
+        self.hold_velocities();
         for &(i, a, value) in &self.held_displacement {
             let (i, a) = (i as usize, a as usize);
             self.positions[i][a] = self.lattice.positions[i][a] + value;
@@ -524,9 +524,7 @@ impl<const D: usize> Stepper for Simulation<D> {
         let dt = self.dt;
         let t0 = Instant::now();
         verlet::half_kick(&mut self.velocities, &self.accelerations, dt);
-        for &(i, a, value) in &self.held_velocity {
-            self.velocities[i as usize][a as usize] = value;
-        }
+        self.hold_velocities();
         verlet::drift(&mut self.positions, &self.velocities, dt);
         let t1 = Instant::now();
         self.update_accelerations();
@@ -585,6 +583,9 @@ impl<const D: usize> Stepper for Simulation<D> {
             ("bonds/broken".to_string(), self.broken as f64),
             ("timing/step_wall_s".to_string(), step_wall),
         ];
+        for (stage, spent) in self.timers.named() {
+            scalars.push((format!("timing/{stage}_total_s"), spent.as_secs_f64()));
+        }
         for (k, p) in momentum.iter().enumerate() {
             scalars.push((format!("momentum/{}", ["x", "y", "z"][k]), *p));
         }
