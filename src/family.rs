@@ -171,7 +171,7 @@ mod tests {
             min: vec![0.0; D],
             max: vec![n as f64; D],
         };
-        let lattice = Lattice::<D>::build(&solid, 1.0, 0.0, 1);
+        let lattice = Lattice::<D>::build(&solid, 1.0, [0.0; 2], 1);
         let centre = [(m + 1) as f64 + 0.0; D];
         let c = lattice
             .positions
@@ -203,7 +203,7 @@ mod tests {
             min: vec![0.0; 2],
             max: vec![10.0; 2],
         };
-        let lattice = Lattice::<2>::build(&solid, 1.0, 0.3, 3);
+        let lattice = Lattice::<2>::build(&solid, 1.0, [-0.3, 0.3], 3);
         let fam = Families::build(&lattice.positions, 3.0);
         for i in 0..fam.node_count() {
             for b in fam.range(i) {

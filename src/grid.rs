@@ -13,8 +13,8 @@ pub struct Lattice<const D: usize> {
 impl<const D: usize> Lattice<D> {
     /// Vertex-centred lattice of spacing `dx` over the solid's bounding box, keeping the nodes
     /// inside the solid; then each component is offset by a uniform random value in
-    /// ±perturbation·dx (deterministic in `seed`).
-    pub fn build(solid: &Solid, dx: f64, perturbation: f64, seed: u64) -> Self {
+    /// [lo, hi]·dx with `perturbation = [lo, hi]` (deterministic in `seed`).
+    pub fn build(solid: &Solid, dx: f64, perturbation: [f64; 2], seed: u64) -> Self {
         let (lo, hi) = solid.bounds();
         let counts: Vec<usize> = (0..D)
             .map(|a| ((hi[a] - lo[a]) / dx + 1e-9).floor() as usize + 1)
@@ -39,11 +39,12 @@ impl<const D: usize> Lattice<D> {
             }
             break;
         }
-        if perturbation > 0.0 {
+        let [p_lo, p_hi] = perturbation;
+        if p_lo != 0.0 || p_hi != 0.0 {
             let mut rng = SplitMix64(seed);
             for x in &mut positions {
                 for v in x.iter_mut() {
-                    *v += (2.0 * rng.next_f64() - 1.0) * perturbation * dx;
+                    *v += (p_lo + (p_hi - p_lo) * rng.next_f64()) * dx;
                 }
             }
         }
@@ -92,7 +93,7 @@ mod tests {
             min: vec![0.0, -0.1],
             max: vec![0.1, 0.1],
         };
-        let lattice = Lattice::<2>::build(&plate, 0.25e-3, 0.0, 1);
+        let lattice = Lattice::<2>::build(&plate, 0.25e-3, [0.0; 2], 1);
         assert_eq!(lattice.len(), 321_201);
     }
 
@@ -102,9 +103,9 @@ mod tests {
             min: vec![0.0; 3],
             max: vec![1.0; 3],
         };
-        let a = Lattice::<3>::build(&cube, 0.1, 0.35, 7);
-        let b = Lattice::<3>::build(&cube, 0.1, 0.35, 7);
-        let plain = Lattice::<3>::build(&cube, 0.1, 0.0, 7);
+        let a = Lattice::<3>::build(&cube, 0.1, [-0.35, 0.35], 7);
+        let b = Lattice::<3>::build(&cube, 0.1, [-0.35, 0.35], 7);
+        let plain = Lattice::<3>::build(&cube, 0.1, [0.0; 2], 7);
         assert_eq!(a.positions, b.positions);
         for (p, q) in a.positions.iter().zip(&plain.positions) {
             for k in 0..3 {

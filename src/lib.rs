@@ -14,6 +14,7 @@ pub mod model;
 pub mod readback;
 pub mod record;
 pub mod runner;
+pub mod scalar;
 pub mod scene;
 pub mod scheme;
 pub mod sim;

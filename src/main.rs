@@ -10,7 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use peridyn::record::{RecordTarget, RerunSink};
 use peridyn::runner::{self, RunSummary};
-use peridyn::scene::{Scene, builtin};
+use peridyn::scene::{Physics, Scene, builtin};
 use peridyn::{bench, sim};
 
 #[derive(Parser)]
@@ -80,6 +80,10 @@ struct SceneArgs {
     /// Preset variant, e.g. `small`.
     #[arg(long)]
     variant: Option<String>,
+    /// Override a preset value after the variant, e.g. `--set discretization.scheme=wls-4`
+    /// (repeatable; values in TOML syntax, bare words are strings).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
 }
 
 #[derive(Args)]
@@ -105,6 +109,7 @@ fn main() -> ExitCode {
             scene: SceneArgs {
                 preset: preset.into(),
                 variant: Some(variant.into()),
+                set: Vec::new(),
             },
             output: None,
             run: RunArgs {
@@ -133,7 +138,8 @@ enum Failure {
 }
 
 fn load(args: &SceneArgs) -> Result<Scene, Failure> {
-    Scene::load(&args.preset, args.variant.as_deref()).map_err(|e| Failure::BadInput(e.to_string()))
+    Scene::load_with(&args.preset, args.variant.as_deref(), &args.set)
+        .map_err(|e| Failure::BadInput(e.to_string()))
 }
 
 fn execute(command: Command) -> Result<ExitCode, Failure> {
@@ -156,19 +162,7 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
         Command::Check(args) => {
             let scene = load(&args)?;
             let sim = sim::build(&scene).map_err(|e| Failure::BadInput(e.to_string()))?;
-            let info = sim.info();
-            println!(
-                "{} ({}D): {} nodes, {} directed bonds, Δt = {:.4e} s (stable bound {:.4e} s; (3.8) estimate {:.4e} s), {} steps, a frame every {}",
-                scene.name,
-                info.dim,
-                info.nodes,
-                info.bonds,
-                info.dt,
-                info.stable_dt,
-                info.gershgorin_dt,
-                info.total_steps,
-                info.frame_every
-            );
+            println!("{}", describe(&scene, &sim.info(), None));
             Ok(ExitCode::SUCCESS)
         }
         Command::Record { scene, output, run } => {
@@ -242,21 +236,7 @@ fn simulate(scene: &Scene, target: RecordTarget, args: &RunArgs) -> Result<RunSu
     }
     let mut sim = sim::build(&scene).map_err(|e| Failure::BadInput(e.to_string()))?;
     let info = sim.info();
-    eprintln!(
-        "{}{}: {}D, {} nodes, {} bonds, Δt = {:.3e} s ({:.2}× stable), {} steps",
-        scene.name,
-        scene
-            .variant
-            .as_deref()
-            .map(|v| format!(" [{v}]"))
-            .unwrap_or_default(),
-        info.dim,
-        info.nodes,
-        info.bonds,
-        info.dt,
-        info.dt / info.stable_dt,
-        args.steps.unwrap_or(info.total_steps).min(info.total_steps)
-    );
+    eprintln!("{}", describe(&scene, &info, args.steps));
     let mut sink = RerunSink::start(target, &scene, &info).map_err(Failure::Runtime)?;
     let stop = Arc::new(AtomicBool::new(false));
     {
@@ -303,6 +283,48 @@ fn simulate(scene: &Scene, target: RecordTarget, args: &RunArgs) -> Result<RunSu
     Ok(summary)
 }
 
+/// One line on a built scene: size, scheme, time step against its bound, steps.
+fn describe(scene: &Scene, info: &sim::SimInfo, steps: Option<u64>) -> String {
+    let name = match &scene.variant {
+        Some(v) => format!("{} [{v}]", scene.name),
+        None => scene.name.clone(),
+    };
+    let steps = steps.unwrap_or(info.total_steps).min(info.total_steps);
+    let stencil = format!(
+        "{} scheme, {:.1} nodes per stencil",
+        scene.scheme.kind.name(),
+        info.stencil
+    );
+    match scene.physics {
+        Physics::Static => format!(
+            "{name}: {}D static, {} nodes, {stencil}, {} operator entries, one global solve",
+            info.dim, info.nodes, info.bonds
+        ),
+        Physics::Diffusion => format!(
+            "{name}: {}D diffusion, {} nodes, {stencil}, Δt = {:.4e} s ({:.3}× forward Euler's \
+             bound {:.4e} s from the operator's spectral radius), {steps} steps, a frame every {}",
+            info.dim,
+            info.nodes,
+            info.dt,
+            info.dt / info.stable_dt,
+            info.stable_dt,
+            info.frame_every
+        ),
+        Physics::Dynamics => format!(
+            "{name}: {}D, {} nodes, {} directed bonds, Δt = {:.4e} s ({:.2}× the stable bound \
+             {:.4e} s; (3.8) estimate {:.4e} s), {steps} steps, a frame every {}",
+            info.dim,
+            info.nodes,
+            info.bonds,
+            info.dt,
+            info.dt / info.stable_dt,
+            info.stable_dt,
+            info.gershgorin_dt,
+            info.frame_every
+        ),
+    }
+}
+
 fn print_summary(s: &RunSummary, frames_written: u64) {
     println!(
         "steps: {}  frames: {} ({} written)  wall: {:.2} s  steps/s: {:.1}  bond evaluations/s: {:.3e}  frame share: {:.1} %",
@@ -314,7 +336,11 @@ fn print_summary(s: &RunSummary, frames_written: u64) {
         s.bond_evaluations_per_second(),
         100.0 * s.frame_seconds / s.wall_seconds.max(1e-12)
     );
-    println!("broken bonds: {}", s.broken_bonds);
+    if let Some(e) = s.relative_error {
+        println!("relative l2 error (3.79): {e:.6e}");
+    } else {
+        println!("broken bonds: {}", s.broken_bonds);
+    }
     if let Some(f) = &s.last_frame {
         for key in ["energy/kinetic", "energy/strain", "energy/total"] {
             if let Some(v) = f.scalar(key) {

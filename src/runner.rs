@@ -38,6 +38,8 @@ pub struct RunSummary {
     pub error: Option<SimError>,
     pub crack_angles: Vec<(String, Option<f64>)>,
     pub broken_bonds: u64,
+    /// Relative ℓ² error (3.79) at the end, for scenes with a reference solution.
+    pub relative_error: Option<f64>,
     pub last_frame: Option<Frame>,
 }
 
@@ -100,6 +102,7 @@ pub fn run(
     RunSummary {
         crack_angles: sim.crack_angles(),
         broken_bonds: sim.broken_bonds(),
+        relative_error: sim.relative_error(),
         steps: sim.steps_done(),
         info,
         frames,

@@ -9,8 +9,9 @@ use crate::grid::Lattice;
 use crate::integrate::{self, stability, verlet};
 use crate::metrics;
 use crate::model::pmb::PmbLaw;
+use crate::scalar::ScalarSimulation;
 use crate::scene::error::locate_field;
-use crate::scene::{Condition, Duration, InitialVelocity, Scene, SceneError, StepSize};
+use crate::scene::{Condition, Duration, InitialVelocity, Physics, Scene, SceneError, StepSize};
 use crate::scheme::standard::{self, NodeTerms, Quadrature, Standard};
 
 /// A run that had to stop.
@@ -24,6 +25,16 @@ pub enum SimError {
         dt: f64,
         stable_dt: f64,
     },
+    /// Forward Euler diverged: the field grew past 10⁶× its scale, or became NaN.
+    Diverged {
+        step: u64,
+        time: f64,
+        max_value: f64,
+        dt: f64,
+        stable_dt: f64,
+    },
+    /// A static solve failed.
+    Solve(String),
 }
 
 impl std::fmt::Display for SimError {
@@ -43,6 +54,21 @@ impl std::fmt::Display for SimError {
                  before writing a non-finite frame.",
                 dt / stable_dt
             ),
+            SimError::Diverged {
+                step,
+                time,
+                max_value,
+                dt,
+                stable_dt,
+            } => write!(
+                f,
+                "forward Euler diverged at step {step} (t = {time:.4e} s): max |field| = \
+                 {max_value:.3e}, over 10⁶× its scale. Δt = {dt:.3e} s is {:.2}× the bound \
+                 {stable_dt:.3e} s (2/ρ, ρ the operator's spectral radius by power iteration); \
+                 lower time.dt. The run was stopped before writing a non-finite frame.",
+                dt / stable_dt
+            ),
+            SimError::Solve(message) => write!(f, "static solve failed: {message}"),
         }
     }
 }
@@ -84,6 +110,9 @@ pub struct SimInfo {
     pub frame_every: u64,
     /// Solver memory (bond and node arrays) per directed bond.
     pub bytes_per_bond: f64,
+    /// Mean nodes per updated node's stencil, the node itself included: the family (standard
+    /// scheme, the papers' counts: 2m+1 in 1D, 441 for m = 12 in 2D) or the collocation set.
+    pub stencil: f64,
 }
 
 /// Dimension-erased interface used by the CLI, sinks and benchmarks.
@@ -97,10 +126,21 @@ pub trait Stepper: Send {
     /// Final crack angles `(name, degrees)` (None where no crack was found).
     fn crack_angles(&self) -> Vec<(String, Option<f64>)>;
     fn broken_bonds(&self) -> u64;
+    /// Relative ℓ² error (3.79) against the scene's reference solution, if it has one.
+    fn relative_error(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// Builds the simulation of a scene in its dimension.
 pub fn build(scene: &Scene) -> Result<Box<dyn Stepper>, SceneError> {
+    if scene.physics != Physics::Dynamics {
+        return Ok(match scene.dim {
+            1 => Box::new(ScalarSimulation::<1>::new(scene)?),
+            2 => Box::new(ScalarSimulation::<2>::new(scene)?),
+            _ => Box::new(ScalarSimulation::<3>::new(scene)?),
+        });
+    }
     Ok(match scene.dim {
         1 => Box::new(Simulation::<1>::new(scene)?),
         2 => Box::new(Simulation::<2>::new(scene)?),
@@ -200,7 +240,13 @@ impl<const D: usize> Simulation<D> {
                 ));
             }
         }
-        let m = &scene.material;
+        let Some(m) = scene.material.as_ref() else {
+            return Err(error(
+                "material",
+                "dynamics needs an elastic material (density, youngs_modulus or micromodulus)"
+                    .into(),
+            ));
+        };
         let law = PmbLaw {
             micromodulus: m.micromodulus,
             critical_stretch: m.critical_stretch.unwrap_or(f64::INFINITY),
@@ -324,21 +370,17 @@ impl<const D: usize> Simulation<D> {
         }
     }
 
+    fn density(&self) -> f64 {
+        self.scene.material.as_ref().map_or(1.0, |m| m.density)
+    }
+
     fn collect_boundary_layers(&mut self) -> Result<(), (String, String)> {
         let (lo, hi) = self.scene.solid.bounds();
         let eps = 1e-9 * self.scene.spacing;
         for (l, layer) in self.scene.boundary.iter().enumerate() {
             let mut count = 0;
             for (i, x) in self.lattice.positions.iter().enumerate() {
-                let in_face = layer.face.is_none_or(|(a, upper, t)| {
-                    if upper {
-                        x[a] >= hi[a] - t - eps
-                    } else {
-                        x[a] <= lo[a] + t + eps
-                    }
-                });
-                let in_region = layer.region.as_ref().is_none_or(|r| r.contains(x, eps));
-                if !(in_face && in_region) {
+                if !layer.contains(x, &lo, &hi, eps) {
                     continue;
                 }
                 count += 1;
@@ -355,6 +397,8 @@ impl<const D: usize> Simulation<D> {
                             .iter()
                             .map(|&a| (i as u32, a as u8, layer.value[a])),
                     ),
+                    // Scalar-field scenes only (refused for dynamics by validation).
+                    Condition::Reference => {}
                     Condition::BodyForce => {
                         if self.body_force.is_empty() {
                             self.body_force = vec![[0.0; D]; self.lattice.len()];
@@ -424,7 +468,7 @@ impl<const D: usize> Simulation<D> {
             self.uniform_volume,
         );
         self.broken += scheme.forces(&self.positions, &mut self.intact, &mut self.terms);
-        let inv_rho = 1.0 / self.scene.material.density;
+        let inv_rho = 1.0 / self.density();
         let body = &self.body_force;
         for (i, (a, t)) in self.accelerations.iter_mut().zip(&self.terms).enumerate() {
             for k in 0..D {
@@ -486,7 +530,7 @@ impl<const D: usize> Simulation<D> {
         metrics::kinetic_energy_and_momentum(
             &self.velocities,
             &self.lattice.volumes,
-            self.scene.material.density,
+            self.density(),
         )
     }
 
@@ -626,6 +670,7 @@ impl<const D: usize> Stepper for Simulation<D> {
             total_steps: self.total_steps,
             frame_every: self.frame_every,
             bytes_per_bond: self.memory_bytes() as f64 / self.families.bond_count().max(1) as f64,
+            stencil: self.families.bond_count() as f64 / self.lattice.len().max(1) as f64 + 1.0,
         }
     }
 

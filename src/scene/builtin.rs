@@ -2,12 +2,20 @@
 
 const PRESETS: &[(&str, &str)] = &[
     (
+        "diffusion-2d-manufactured",
+        include_str!("../../presets/diffusion-2d-manufactured.toml"),
+    ),
+    (
         "kalthoff-winkler",
         include_str!("../../presets/kalthoff-winkler.toml"),
     ),
     (
         "pmb-block-3d",
         include_str!("../../presets/pmb-block-3d.toml"),
+    ),
+    (
+        "static-1d-manufactured",
+        include_str!("../../presets/static-1d-manufactured.toml"),
     ),
     (
         "vibrating-plate",

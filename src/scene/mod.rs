@@ -3,6 +3,7 @@
 pub mod builtin;
 pub mod error;
 pub mod geometry;
+pub mod reference;
 pub mod schema;
 pub mod units;
 mod validate;
@@ -11,7 +12,8 @@ use std::path::Path;
 
 pub use error::SceneError;
 pub use geometry::Solid;
-pub use schema::{FamilyRadius, Influence, Plane, Preset};
+pub use reference::Reference;
+pub use schema::{FamilyRadius, Influence, Physics, Plane, Preset, SchemeKind};
 
 use error::{ErrorContext, line_of};
 
@@ -29,11 +31,18 @@ pub struct Scene {
     pub solid: Solid,
     pub spacing: f64,
     pub horizon: f64,
-    pub perturbation: f64,
+    /// Node offsets per component, uniform in [lo, hi]·Δx.
+    pub perturbation: [f64; 2],
     pub seed: u64,
     pub family_radius: FamilyRadius,
     pub volume_correction: bool,
-    pub material: MaterialSpec,
+    pub physics: Physics,
+    pub scheme: SchemeSpec,
+    /// Elastic material (dynamics and static scenes).
+    pub material: Option<MaterialSpec>,
+    /// Diffusion kernel (diffusion scenes).
+    pub diffusion: Option<DiffusionSpec>,
+    pub reference: Option<Reference>,
     pub precracks: Vec<CrackGeometry>,
     pub boundary: Vec<BoundarySpec>,
     pub initial_velocity: Vec<InitialVelocity>,
@@ -53,6 +62,20 @@ pub struct MaterialSpec {
     pub youngs_modulus: Option<f64>,
 }
 
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DiffusionSpec {
+    pub diffusivity: f64,
+    pub exponent: f64,
+    pub influence: Influence,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SchemeSpec {
+    pub kind: SchemeKind,
+    /// WLS auxiliary-grid factor k_aux (spacing δ/k_aux); 0 for the standard scheme.
+    pub collocation_factor: usize,
+}
+
 #[derive(Debug, Clone)]
 pub enum CrackGeometry {
     Point(f64),
@@ -69,6 +92,8 @@ pub enum Condition {
     Velocity,
     Displacement,
     BodyForce,
+    /// The scalar field is held at the reference solution.
+    Reference,
 }
 
 #[derive(Debug, Clone)]
@@ -80,6 +105,22 @@ pub struct BoundarySpec {
     pub condition: Condition,
     pub value: Vec<f64>,
     pub axes: Vec<usize>,
+    /// The layer was added outside the body's face (the solid is already extended).
+    pub outside: bool,
+}
+
+impl BoundarySpec {
+    /// Whether node position `x` lies in the layer; `lo`, `hi` are the solid's bounds.
+    pub fn contains(&self, x: &[f64], lo: &[f64], hi: &[f64], eps: f64) -> bool {
+        let in_face = self.face.is_none_or(|(a, upper, t)| {
+            if upper {
+                x[a] >= hi[a] - t - eps
+            } else {
+                x[a] <= lo[a] + t + eps
+            }
+        });
+        in_face && self.region.as_ref().is_none_or(|r| r.contains(x, eps))
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -130,8 +171,25 @@ pub struct CrackAngleSpec {
 impl Scene {
     /// Loads a preset by built-in name or file path.
     pub fn load(name_or_path: &str, variant: Option<&str>) -> Result<Scene, SceneError> {
+        Scene::load_with(name_or_path, variant, &[])
+    }
+
+    /// Loads a preset and applies `key.path=value` overrides after the variant (values in TOML
+    /// syntax; a bare word is taken as a string), e.g. `discretization.scheme=wls-2`.
+    pub fn load_with(
+        name_or_path: &str,
+        variant: Option<&str>,
+        overrides: &[String],
+    ) -> Result<Scene, SceneError> {
+        let (file, text) = Scene::read(name_or_path)?;
+        let table = override_table(&file, overrides)?;
+        Scene::from_text_with(&file, &text, variant, &table)
+    }
+
+    /// The preset text of a built-in name or a file, and the name to report it under.
+    pub fn read(name_or_path: &str) -> Result<(String, String), SceneError> {
         if let Some(text) = builtin::text(name_or_path) {
-            return Scene::from_text(&format!("builtin:{name_or_path}"), text, variant);
+            return Ok((format!("builtin:{name_or_path}"), text.to_string()));
         }
         let path = Path::new(name_or_path);
         let text = std::fs::read_to_string(path).map_err(|e| SceneError {
@@ -147,11 +205,21 @@ impl Scene {
                 )
             },
         })?;
-        Scene::from_text(name_or_path, &text, variant)
+        Ok((name_or_path.to_string(), text))
     }
 
     /// Parses and validates preset text; `file` names it in errors.
     pub fn from_text(file: &str, text: &str, variant: Option<&str>) -> Result<Scene, SceneError> {
+        Scene::from_text_with(file, text, variant, &toml::Table::new())
+    }
+
+    /// As `from_text`, with `overrides` merged after the variant.
+    pub fn from_text_with(
+        file: &str,
+        text: &str,
+        variant: Option<&str>,
+        overrides: &toml::Table,
+    ) -> Result<Scene, SceneError> {
         let base_ctx = ErrorContext {
             file,
             text,
@@ -167,27 +235,35 @@ impl Scene {
             },
         };
         let base: Preset = toml::from_str(text).map_err(|e| toml_error(e, &base_ctx))?;
-        let preset = match variant {
-            None => base,
-            Some(v) => {
-                let ctx = ErrorContext {
-                    variant: Some(v),
-                    ..base_ctx.clone()
-                };
-                let overrides = base.variants.get(v).ok_or_else(|| {
+        let preset = if variant.is_none() && overrides.is_empty() {
+            base
+        } else {
+            let ctx = ErrorContext {
+                variant,
+                ..base_ctx.clone()
+            };
+            let mut merged: toml::Table = text.parse().map_err(|e| toml_error(e, &ctx))?;
+            merged.remove("variants");
+            if let Some(v) = variant {
+                let variant_table = base.variants.get(v).ok_or_else(|| {
                     let known: Vec<&str> = base.variants.keys().map(String::as_str).collect();
                     ctx.error(
                         "variants",
                         format!("no variant `{v}`; this preset has: {}", known.join(", ")),
                     )
                 })?;
-                let mut merged: toml::Table = text.parse().map_err(|e| toml_error(e, &ctx))?;
-                merged.remove("variants");
-                merge_tables(&mut merged, overrides);
-                toml::Value::Table(merged)
-                    .try_into()
-                    .map_err(|e: toml::de::Error| toml_error(e, &ctx))?
+                merge_tables(&mut merged, variant_table);
             }
+            merge_tables(&mut merged, overrides);
+            toml::Value::Table(merged)
+                .try_into()
+                .map_err(|e: toml::de::Error| {
+                    if overrides.is_empty() {
+                        toml_error(e, &ctx)
+                    } else {
+                        override_error(file, overrides, e)
+                    }
+                })?
         };
         let ctx = ErrorContext {
             file,
@@ -195,6 +271,61 @@ impl Scene {
             variant,
         };
         validate::validate(&preset, &ctx, text, variant)
+    }
+}
+
+/// `a.b=value` strings as a nested table; values in TOML syntax, bare words as strings.
+pub fn override_table(file: &str, overrides: &[String]) -> Result<toml::Table, SceneError> {
+    let mut table = toml::Table::new();
+    for o in overrides {
+        let bad = |message: String| SceneError {
+            file: file.to_string(),
+            field: o.split('=').next().unwrap_or_default().trim().to_string(),
+            line: None,
+            message,
+        };
+        let Some((key, value)) = o.split_once('=') else {
+            return Err(bad(format!(
+                "override `{o}`: write KEY=VALUE, e.g. discretization.scheme=wls-2"
+            )));
+        };
+        let value = value.trim();
+        let parsed = format!("v = {value}")
+            .parse::<toml::Table>()
+            .ok()
+            .and_then(|mut t| t.remove("v"))
+            .unwrap_or_else(|| toml::Value::String(value.to_string()));
+        let keys: Vec<&str> = key.trim().split('.').collect();
+        if keys.iter().any(|k| k.is_empty()) {
+            return Err(bad(format!("override `{o}`: empty key segment")));
+        }
+        let mut node = toml::Value::Table(table.clone());
+        let mut cursor = &mut node;
+        for k in &keys[..keys.len() - 1] {
+            let t = cursor
+                .as_table_mut()
+                .ok_or_else(|| bad(format!("override `{o}`: `{k}` is not a table")))?;
+            cursor = t
+                .entry(k.to_string())
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        }
+        cursor
+            .as_table_mut()
+            .ok_or_else(|| bad(format!("override `{o}`: not a table")))?
+            .insert(keys[keys.len() - 1].to_string(), parsed);
+        if let toml::Value::Table(t) = node {
+            table = t;
+        }
+    }
+    Ok(table)
+}
+
+fn override_error(file: &str, overrides: &toml::Table, e: toml::de::Error) -> SceneError {
+    SceneError {
+        file: file.to_string(),
+        field: String::new(),
+        line: None,
+        message: format!("{} (with overrides {overrides})", e.message().trim()),
     }
 }
 

@@ -16,6 +16,9 @@ pub struct Preset {
     pub description: String,
     /// Spatial dimension: 1, 2 or 3.
     pub dimension: usize,
+    /// What is solved: elastodynamics (default), a static linear solve, or diffusion.
+    #[serde(default)]
+    pub physics: Physics,
     pub geometry: Shape,
     pub discretization: Discretization,
     pub material: Material,
@@ -25,11 +28,15 @@ pub struct Preset {
     pub boundary: Vec<BoundaryLayer>,
     #[serde(default)]
     pub initial: Initial,
-    pub time: TimeSpec,
+    /// Required except for static scenes (one solve).
+    pub time: Option<TimeSpec>,
     #[serde(default)]
     pub output: Output,
     #[serde(default)]
     pub metrics: MetricsSpec,
+    /// A manufactured solution: gives the body force or source, the values held in
+    /// `hold_reference` layers, and the error norm (3.79) reported in frames.
+    pub reference: Option<ReferenceSpec>,
     /// Named overrides merged onto this file, e.g. `[variants.small]`.
     #[serde(default)]
     pub variants: BTreeMap<String, toml::Table>,
@@ -42,9 +49,10 @@ pub struct Discretization {
     pub spacing: Quantity,
     /// Horizon δ, absolute ("2 mm") or as m = δ/Δx ("4 dx").
     pub horizon: Measure,
-    /// Random node offsets, uniform in ±perturbation·Δx per component.
+    /// Random node offsets per component, as fractions of Δx: `0.2` means uniform in
+    /// ±0.2 Δx, `[0.0, 0.35]` uniform in [0, 0.35 Δx] (the thesis's perturbed grid).
     #[serde(default)]
-    pub perturbation: f64,
+    pub perturbation: Perturbation,
     #[serde(default = "default_seed")]
     pub seed: u64,
     #[serde(default)]
@@ -54,6 +62,74 @@ pub struct Discretization {
     pub volume_correction: bool,
     #[serde(default)]
     pub scheme: SchemeKind,
+    /// WLS only: the auxiliary grid has spacing δ / collocation_factor (k_aux). Default: the
+    /// papers' choice for the basis order and dimension (collocation sets of 5/11/13 in 1D,
+    /// 29/49 in 2D, 123 in 3D).
+    pub collocation_factor: Option<usize>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum Perturbation {
+    Symmetric(f64),
+    Range([f64; 2]),
+}
+
+impl Default for Perturbation {
+    fn default() -> Self {
+        Perturbation::Symmetric(0.0)
+    }
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Physics {
+    /// Elastodynamics with velocity-Verlet.
+    #[default]
+    Dynamics,
+    /// Static linear elasticity, one global solve (1D).
+    Static,
+    /// Transient PD diffusion with forward Euler (3.4)/(3.30).
+    Diffusion,
+}
+
+/// Manufactured solutions of seed-004 §4 (thesis §3.2.5–3.2.6).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "solution", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum ReferenceSpec {
+    /// 1D static: u = sin(x / length). The body force balances either the PD operator
+    /// (`operator = "nonlocal"`, (3.74) with γ, erratum 4) or its local limit E u''
+    /// (`"local"`, the δ-convergence problem (3.76)).
+    #[serde(rename = "sine-1d")]
+    Sine1d {
+        #[serde(default = "ten")]
+        length: Quantity,
+        #[serde(default)]
+        operator: ReferenceOperator,
+    },
+    /// 2D diffusion: C = sin(ω t) (x²y² + x³y + x⁴ + xy³ + y⁴) with ω = `frequency`, and the
+    /// source (3.78) for q = 2, ω0.
+    #[serde(rename = "quartic-2d")]
+    Quartic2d {
+        #[serde(default = "five")]
+        frequency: f64,
+    },
+}
+
+fn ten() -> Quantity {
+    Quantity(10.0)
+}
+
+fn five() -> f64 {
+    5.0
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ReferenceOperator {
+    #[default]
+    Nonlocal,
+    Local,
 }
 
 fn default_seed() -> u64 {
@@ -77,8 +153,44 @@ pub enum FamilyRadius {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum SchemeKind {
+    /// Meshfree particle sums with β partial volumes (3.3)/(3.4).
     #[default]
     Standard,
+    /// WLS collocation with a C² basis (§3.3–3.5).
+    #[serde(rename = "wls-2")]
+    Wls2,
+    #[serde(rename = "wls-4")]
+    Wls4,
+    #[serde(rename = "wls-6")]
+    Wls6,
+}
+
+impl SchemeKind {
+    pub const ALL: [SchemeKind; 4] = [
+        SchemeKind::Standard,
+        SchemeKind::Wls2,
+        SchemeKind::Wls4,
+        SchemeKind::Wls6,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SchemeKind::Standard => "standard",
+            SchemeKind::Wls2 => "wls-2",
+            SchemeKind::Wls4 => "wls-4",
+            SchemeKind::Wls6 => "wls-6",
+        }
+    }
+
+    /// The WLS basis order k, None for the standard scheme.
+    pub fn wls_order(self) -> Option<usize> {
+        match self {
+            SchemeKind::Standard => None,
+            SchemeKind::Wls2 => Some(2),
+            SchemeKind::Wls4 => Some(4),
+            SchemeKind::Wls6 => Some(6),
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
@@ -114,7 +226,8 @@ pub enum Plane {
 pub struct Material {
     #[serde(default)]
     pub model: ModelKind,
-    pub density: Quantity,
+    /// Mass density ρ (dynamics only).
+    pub density: Option<Quantity>,
     /// Young's modulus E (gives the micromodulus c by the tables of §1.3).
     pub youngs_modulus: Option<Quantity>,
     /// Micromodulus c, overriding the one derived from E.
@@ -128,6 +241,10 @@ pub struct Material {
     /// 2D only: plane stress or plane strain.
     #[serde(default)]
     pub plane: Plane,
+    /// Diffusion only: κ of the kernel κ ω / ‖ξ‖^q (2.41).
+    pub diffusivity: Option<Quantity>,
+    /// Diffusion only: the kernel exponent q (errata 7).
+    pub kernel_exponent: Option<f64>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -155,7 +272,15 @@ pub struct BoundaryLayer {
     pub region: Option<Shape>,
     /// "x-", "x+", "y-", "y+", "z-" or "z+".
     pub face: Option<String>,
-    pub thickness: Option<Quantity>,
+    /// "2 mm", "3 dx" or "1 horizon".
+    pub thickness: Option<Measure>,
+    /// The layer lies outside the body's `face` (the body is extended by `thickness`), as the
+    /// Dirichlet collars of seed-004 §4.1. Needs a box geometry.
+    #[serde(default)]
+    pub outside: bool,
+    /// Diffusion and static scenes: the field is held at the reference solution.
+    #[serde(default)]
+    pub hold_reference: bool,
     /// Held velocity (m/s) on the listed `axes`.
     pub velocity: Option<Point>,
     /// Held displacement (m) on the listed `axes`.

@@ -188,6 +188,8 @@ pub enum Relative {
     StableStep,
     /// "2000 steps": a number of time steps.
     Steps,
+    /// "1 horizon": multiples of the horizon δ.
+    Horizon,
 }
 
 impl Relative {
@@ -196,6 +198,7 @@ impl Relative {
             Relative::Spacing => "dx",
             Relative::StableStep => "stable",
             Relative::Steps => "steps",
+            Relative::Horizon => "horizon",
         }
     }
 }
@@ -220,7 +223,12 @@ impl<'de> Deserialize<'de> for Measure {
 }
 
 pub fn parse_measure(text: &str) -> Result<Measure, String> {
-    for relative in [Relative::Spacing, Relative::StableStep, Relative::Steps] {
+    for relative in [
+        Relative::Spacing,
+        Relative::StableStep,
+        Relative::Steps,
+        Relative::Horizon,
+    ] {
         if let Some(number) = text.trim().strip_suffix(relative.unit()) {
             let value = number.trim().parse().map_err(|_| {
                 format!("`{text}` is not a number followed by `{}`", relative.unit())

@@ -2,7 +2,10 @@
 
 use super::error::{ErrorContext, SceneError};
 use super::geometry::{Point, si};
-use super::schema::{BoundaryLayer, Precrack, Preset, VelocityField};
+use super::reference;
+use super::schema::{
+    BoundaryLayer, Perturbation, Physics, Precrack, Preset, SchemeKind, VelocityField,
+};
 use super::units::{Measure, Relative};
 use super::*;
 use crate::model::pmb;
@@ -42,15 +45,35 @@ pub(super) fn validate(
             ));
         }
     };
-    if !(0.0..0.5).contains(&d.perturbation) {
+    let perturbation = match d.perturbation {
+        Perturbation::Symmetric(p) => [-p, p],
+        Perturbation::Range(r) => r,
+    };
+    let valid = match d.perturbation {
+        Perturbation::Symmetric(p) => (0.0..0.5).contains(&p),
+        Perturbation::Range([lo, hi]) => -0.5 < lo && lo <= hi && hi < 0.5,
+    };
+    if !valid {
         return Err(ctx.error(
             "discretization.perturbation",
             format!(
-                "must be in [0, 0.5) (a fraction of the spacing), got {}",
+                "must be a fraction of the spacing p in [0, 0.5) (offsets in ±p Δx), or a range \
+                 [lo, hi] with -0.5 < lo ≤ hi < 0.5; got {:?}",
                 d.perturbation
             ),
         ));
     }
+    let physics = p.physics;
+    let scheme = scheme(p, ctx, dim)?;
+    let boundary = p
+        .boundary
+        .iter()
+        .enumerate()
+        .map(|(i, b)| boundary_layer(b, dim, spacing, horizon, physics, &format!("boundary[{i}]")))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|m| ctx.from_path_message(&m))?;
+    let solid =
+        extend_for_outside_layers(solid, &boundary).map_err(|m| ctx.from_path_message(&m))?;
     let (lo, hi) = solid.bounds();
     let nodes_estimate: f64 = lo
         .iter()
@@ -83,19 +106,54 @@ pub(super) fn validate(
         ));
     }
 
-    let material = material(p, ctx, dim, horizon)?;
+    let (material, diffusion) = match physics {
+        Physics::Diffusion => (None, Some(diffusion(p, ctx)?)),
+        Physics::Static if dim != 1 => {
+            return Err(ctx.error(
+                "physics",
+                format!("\"static\" is available in 1D; this scene is {dim}D"),
+            ));
+        }
+        _ => (Some(material(p, ctx, dim, horizon, physics)?), None),
+    };
+    if physics != Physics::Dynamics && !p.precracks.is_empty() {
+        return Err(ctx.error("precracks", "pre-cracks need physics = \"dynamics\""));
+    }
+    if physics == Physics::Dynamics && scheme.kind != SchemeKind::Standard {
+        return Err(ctx.error(
+            "discretization.scheme",
+            format!(
+                "\"{}\" is available for physics = \"static\" and \"diffusion\"; dynamics uses \"standard\"",
+                scheme.kind.name()
+            ),
+        ));
+    }
+    let reference = p
+        .reference
+        .as_ref()
+        .map(|r| {
+            reference::Reference::from_spec(
+                r,
+                dim,
+                physics,
+                horizon,
+                material.as_ref(),
+                diffusion.as_ref(),
+            )
+        })
+        .transpose()
+        .map_err(|m| ctx.from_path_message(&m))?;
+    if reference.is_none() && boundary.iter().any(|b| b.condition == Condition::Reference) {
+        return Err(ctx.error(
+            "reference",
+            "a `hold_reference` boundary layer needs a [reference] table",
+        ));
+    }
     let precracks = p
         .precracks
         .iter()
         .enumerate()
         .map(|(i, c)| precrack(c, dim, &format!("precracks[{i}]")))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|m| ctx.from_path_message(&m))?;
-    let boundary = p
-        .boundary
-        .iter()
-        .enumerate()
-        .map(|(i, b)| boundary_layer(b, dim, &format!("boundary[{i}]")))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|m| ctx.from_path_message(&m))?;
     let initial_velocity = p
@@ -106,7 +164,16 @@ pub(super) fn validate(
         .map(|(i, v)| velocity_field(v, dim, &format!("initial.velocity[{i}]")))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|m| ctx.from_path_message(&m))?;
-    let time = time_spec(p, ctx)?;
+    let time = match (&p.time, physics) {
+        (Some(t), _) => time_spec(t, ctx)?,
+        // A static scene is one global solve.
+        (None, Physics::Static) => TimeSpec {
+            step: StepSize::Absolute(1.0),
+            duration: Duration::Steps(1),
+            allow_unstable: false,
+        },
+        (None, _) => return Err(ctx.error("time", "give a [time] table with `dt` and `end`")),
+    };
     if p.output.every == Some(0) {
         return Err(ctx.error("output.every", "must be ≥ 1 (steps between frames)"));
     }
@@ -146,7 +213,11 @@ pub(super) fn validate(
         solid,
         spacing,
         horizon,
-        perturbation: d.perturbation,
+        perturbation,
+        physics,
+        scheme,
+        reference,
+        diffusion,
         seed: d.seed,
         family_radius: d.family_radius,
         volume_correction: d.volume_correction,
@@ -173,9 +244,16 @@ fn material(
     ctx: &ErrorContext,
     dim: usize,
     horizon: f64,
+    physics: Physics,
 ) -> Result<MaterialSpec, SceneError> {
     let m = &p.material;
-    let density = positive(ctx, "material.density", m.density.si())?;
+    let density = match (m.density, physics) {
+        (Some(rho), _) => positive(ctx, "material.density", rho.si())?,
+        (None, Physics::Dynamics) => {
+            return Err(ctx.error("material.density", "dynamics needs a mass density ρ"));
+        }
+        (None, _) => 1.0,
+    };
     let youngs_modulus = m
         .youngs_modulus
         .map(|e| positive(ctx, "material.youngs_modulus", e.si()))
@@ -212,6 +290,92 @@ fn material(
         plane: m.plane,
         youngs_modulus,
     })
+}
+
+fn diffusion(p: &Preset, ctx: &ErrorContext) -> Result<DiffusionSpec, SceneError> {
+    let m = &p.material;
+    let diffusivity = match m.diffusivity {
+        Some(k) => positive(ctx, "material.diffusivity", k.si())?,
+        None => return Err(ctx.error("material.diffusivity", "diffusion needs κ (`diffusivity`)")),
+    };
+    let exponent = m.kernel_exponent.unwrap_or(2.0);
+    if !(0.0..3.0).contains(&exponent) {
+        return Err(ctx.error(
+            "material.kernel_exponent",
+            format!("q must be in [0, 3) so the kernel stays integrable in 1D–3D, got {exponent}"),
+        ));
+    }
+    Ok(DiffusionSpec {
+        diffusivity,
+        exponent,
+        influence: m.influence,
+    })
+}
+
+/// The scheme and, for WLS, the auxiliary-grid factor k_aux (defaults from the papers' tables:
+/// 1D C²/C⁴/C⁶ → 2/5/6 (5/11/13 nodes), 2D C²/C⁴ → 3/4 (29/49), 3D C² → 3 (123)).
+fn scheme(p: &Preset, ctx: &ErrorContext, dim: usize) -> Result<SchemeSpec, SceneError> {
+    let d = &p.discretization;
+    let kind = d.scheme;
+    let Some(order) = kind.wls_order() else {
+        return Ok(SchemeSpec {
+            kind,
+            collocation_factor: 0,
+        });
+    };
+    let default = match (dim, order) {
+        (1, 2) => Some(2),
+        (1, 4) => Some(5),
+        (1, _) => Some(6),
+        (2, 2) => Some(3),
+        (2, 4) => Some(4),
+        (3, 2) => Some(3),
+        _ => None,
+    };
+    let collocation_factor = match (d.collocation_factor, default) {
+        (Some(k), _) if (1..=64).contains(&k) => k,
+        (Some(k), _) => {
+            return Err(ctx.error(
+                "discretization.collocation_factor",
+                format!("k_aux must be in 1..=64, got {k}"),
+            ));
+        }
+        (None, Some(k)) => k,
+        (None, None) => {
+            return Err(ctx.error(
+                "discretization.scheme",
+                format!(
+                    "\"{}\" in {dim}D has no default collocation set; give \
+                     discretization.collocation_factor (k_aux), or use a lower order",
+                    kind.name()
+                ),
+            ));
+        }
+    };
+    Ok(SchemeSpec {
+        kind,
+        collocation_factor,
+    })
+}
+
+/// Boxes grow by the thickness of their `outside` layers.
+fn extend_for_outside_layers(solid: Solid, layers: &[BoundarySpec]) -> Result<Solid, String> {
+    if !layers.iter().any(|l| l.outside) {
+        return Ok(solid);
+    }
+    let Solid::Box { mut min, mut max } = solid else {
+        return Err("geometry: layers with `outside = true` need a box geometry".into());
+    };
+    for l in layers.iter().filter(|l| l.outside) {
+        if let Some((axis, upper, t)) = l.face {
+            if upper {
+                max[axis] += t;
+            } else {
+                min[axis] -= t;
+            }
+        }
+    }
+    Ok(Solid::Box { min, max })
 }
 
 fn point(p: &Point, dim: usize, path: &str) -> Result<Vec<f64>, String> {
@@ -275,8 +439,33 @@ pub(crate) fn axis_index(name: &str, dim: usize, path: &str) -> Result<usize, St
     Ok(i)
 }
 
-fn boundary_layer(b: &BoundaryLayer, dim: usize, path: &str) -> Result<BoundarySpec, String> {
+fn boundary_layer(
+    b: &BoundaryLayer,
+    dim: usize,
+    spacing: f64,
+    horizon: f64,
+    physics: Physics,
+    path: &str,
+) -> Result<BoundarySpec, String> {
+    let mechanical = b.velocity.is_some() || b.displacement.is_some() || b.body_force.is_some();
+    if b.hold_reference && mechanical {
+        return Err(format!(
+            "{path}.hold_reference: a layer holds the reference solution or a velocity, \
+             displacement or body force, not both"
+        ));
+    }
+    if b.hold_reference && physics == Physics::Dynamics {
+        return Err(format!(
+            "{path}.hold_reference: only static and diffusion scenes hold a reference field"
+        ));
+    }
+    if physics != Physics::Dynamics && mechanical {
+        return Err(format!(
+            "{path}.velocity: physics = \"{physics:?}\" holds fields with `hold_reference = true`"
+        ));
+    }
     let (condition, value) = match (&b.velocity, &b.displacement, &b.body_force) {
+        _ if b.hold_reference => (Condition::Reference, vec![0.0; dim]),
         (Some(v), None, None) => (
             Condition::Velocity,
             point(v, dim, &format!("{path}.velocity"))?,
@@ -291,7 +480,8 @@ fn boundary_layer(b: &BoundaryLayer, dim: usize, path: &str) -> Result<BoundaryS
         ),
         _ => {
             return Err(format!(
-                "{path}.velocity: give exactly one of `velocity`, `displacement`, `body_force`"
+                "{path}.velocity: give exactly one of `velocity`, `displacement`, `body_force`, \
+                 `hold_reference`"
             ));
         }
     };
@@ -314,14 +504,21 @@ fn boundary_layer(b: &BoundaryLayer, dim: usize, path: &str) -> Result<BoundaryS
                     ));
                 }
             };
-            if t.si() <= 0.0 {
-                return Err(format!("{path}.thickness: must be > 0, got {}", t.si()));
+            let t = match t {
+                Measure::Si(t) => t,
+                Measure::Relative(f, Relative::Spacing) => f * spacing,
+                Measure::Relative(f, Relative::Horizon) => f * horizon,
+                Measure::Relative(_, r) => {
+                    return Err(format!(
+                        "{path}.thickness: `{}` is not a length: give \"2 mm\", \"3 dx\" or \"1 horizon\"",
+                        r.unit()
+                    ));
+                }
+            };
+            if !(t > 0.0 && t.is_finite()) {
+                return Err(format!("{path}.thickness: must be > 0, got {t}"));
             }
-            Some((
-                axis_index(axis, dim, &format!("{path}.face"))?,
-                upper,
-                t.si(),
-            ))
+            Some((axis_index(axis, dim, &format!("{path}.face"))?, upper, t))
         }
         (None, None) => None,
         (Some(_), None) => return Err(format!("{path}.thickness: a `face` needs a `thickness`")),
@@ -332,6 +529,9 @@ fn boundary_layer(b: &BoundaryLayer, dim: usize, path: &str) -> Result<BoundaryS
         .as_ref()
         .map(|r| r.to_solid(dim, &format!("{path}.region")))
         .transpose()?;
+    if b.outside && face.is_none() {
+        return Err(format!("{path}.outside: needs a `face` and a `thickness`"));
+    }
     if region.is_none() && face.is_none() {
         return Err(format!(
             "{path}.region: give a `region`, a `face` + `thickness`, or both"
@@ -348,6 +548,7 @@ fn boundary_layer(b: &BoundaryLayer, dim: usize, path: &str) -> Result<BoundaryS
         condition,
         value,
         axes,
+        outside: b.outside,
     })
 }
 
@@ -381,8 +582,7 @@ fn velocity_field(v: &VelocityField, dim: usize, path: &str) -> Result<InitialVe
     })
 }
 
-fn time_spec(p: &Preset, ctx: &ErrorContext) -> Result<TimeSpec, SceneError> {
-    let t = &p.time;
+fn time_spec(t: &super::schema::TimeSpec, ctx: &ErrorContext) -> Result<TimeSpec, SceneError> {
     let step = match t.dt {
         Measure::Si(dt) => StepSize::Absolute(positive(ctx, "time.dt", dt)?),
         Measure::Relative(f, Relative::StableStep) => {

@@ -1,5 +1,7 @@
 //! Spatial discretizations as operators.
 
+use rayon::prelude::*;
+
 pub mod standard;
 pub mod wls;
 
@@ -31,6 +33,18 @@ impl ScalarOperator {
             columns,
             weights,
         }
+    }
+
+    /// out[r] = Σ_j w_rj values[j], one entry per row, in parallel.
+    pub fn apply_rows(&self, values: &[f64], out: &mut [f64]) {
+        out.par_iter_mut().enumerate().for_each(|(r, o)| {
+            let range = self.offsets[r]..self.offsets[r + 1];
+            *o = self.columns[range.clone()]
+                .iter()
+                .zip(&self.weights[range])
+                .map(|(&j, w)| w * values[j as usize])
+                .sum();
+        });
     }
 
     /// out[rows[r]] = Σ_j w_rj values[j] for every row; other entries are left alone.

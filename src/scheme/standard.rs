@@ -517,7 +517,7 @@ mod tests {
             min: vec![0.0; 3],
             max: vec![12.0; 3],
         };
-        let lattice = Lattice::<3>::build(&cube, 1.0, 0.2, 5);
+        let lattice = Lattice::<3>::build(&cube, 1.0, [-0.2, 0.2], 5);
         let families = Families::build(&lattice.positions, 3.0);
         let law = PmbLaw {
             micromodulus: 1.0,

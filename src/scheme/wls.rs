@@ -362,7 +362,7 @@ mod tests {
             min: vec![0.0; D],
             max: vec![n as f64; D],
         };
-        let lattice = Lattice::<D>::build(&solid, 1.0, perturbation, 11);
+        let lattice = Lattice::<D>::build(&solid, 1.0, [-perturbation, perturbation], 11);
         let families = Families::build(&lattice.positions, m as f64 * (1.0 + 1e-9));
         let c = centre_node(&lattice, (n / 2) as f64);
         (lattice, families, c)
@@ -586,7 +586,7 @@ mod tests {
             min: vec![0.0; 2],
             max: vec![20.0; 2],
         };
-        let lattice = Lattice::<2>::build(&solid, 1.0, 0.3, 2);
+        let lattice = Lattice::<2>::build(&solid, 1.0, [-0.3, 0.3], 2);
         let horizon = m as f64;
         let families = Families::build(&lattice.positions, horizon);
         let interior: Vec<u32> = (0..lattice.len() as u32)

@@ -1,0 +1,481 @@
+//! Scalar-field simulations: a static linear solve (1D elasticity, seed-004 §4.1) or transient
+//! PD diffusion with forward Euler (31) (§4.2), on either scheme. The field is held at the
+//! reference solution in `hold_reference` layers; frames carry the field and its pointwise
+//! error against the reference, and the relative ℓ² error (66)/(3.79).
+
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::family::{self, Families};
+use crate::frame::{Frame, NodeField};
+use crate::grid::Lattice;
+use crate::integrate::linear::BandMatrix;
+use crate::integrate::stability;
+use crate::model::diffusion::DiffusionKernel;
+use crate::scene::error::locate_field;
+use crate::scene::{
+    Condition, Duration, Influence, Physics, Reference, Scene, SceneError, StepSize,
+};
+use crate::scheme::ScalarOperator;
+use crate::scheme::standard::{self, Quadrature};
+use crate::scheme::wls::{self, Basis};
+use crate::sim::{SimError, SimInfo, StageTimers, Stepper};
+
+/// Power iterations for the forward-Euler bound of a (possibly non-symmetric) operator, and
+/// the margin kept on the spectral radius found.
+const POWER_ITERATIONS: usize = 300;
+const SPECTRAL_MARGIN: f64 = 1.02;
+/// A field this many times larger than its scale has diverged.
+const DIVERGENCE_FACTOR: f64 = 1e6;
+
+pub struct ScalarSimulation<const D: usize> {
+    scene: Scene,
+    positions: Vec<[f64; D]>,
+    volumes: Vec<f64>,
+    /// Rows: the free nodes, in increasing order.
+    operator: ScalarOperator,
+    held: Vec<u32>,
+    field: Vec<f64>,
+    /// The operator's value on each free node (row order).
+    rate: Vec<f64>,
+    reference: Option<Reference>,
+    dt: f64,
+    stable_dt: f64,
+    total_steps: u64,
+    frame_every: u64,
+    step: u64,
+    timers: StageTimers,
+    /// |field| scale for the color range and the divergence check.
+    amplitude: f64,
+    last_frame: (u64, Instant),
+}
+
+/// The kernel whose operator the scene solves: diffusion's κ ω/‖ξ‖^q, or in 1D static
+/// elasticity the bond-based force c ω (u_j − u_i)/|ξ|, i.e. κ = c, q = 1 (2.33) linearized.
+fn kernel(scene: &Scene) -> DiffusionKernel {
+    match (&scene.diffusion, &scene.material) {
+        (Some(d), _) => DiffusionKernel {
+            diffusivity: d.diffusivity,
+            exponent: d.exponent,
+            influence: d.influence,
+            horizon: scene.horizon,
+        },
+        (None, m) => DiffusionKernel {
+            diffusivity: m.as_ref().map_or(0.0, |m| m.micromodulus),
+            exponent: 1.0,
+            influence: m.as_ref().map_or(Influence::Constant, |m| m.influence),
+            horizon: scene.horizon,
+        },
+    }
+}
+
+/// Assembles the scheme's operator on the rows `free` (standard (3.4) or WLS §3.4).
+pub fn assemble<const D: usize>(
+    scene: &Scene,
+    lattice: &Lattice<D>,
+    families: &Families,
+    free: &[u32],
+) -> Result<ScalarOperator, String> {
+    let kernel = kernel(scene);
+    match scene.scheme.kind.wls_order() {
+        None => {
+            // Identical cells and nominal β, also on a perturbed grid (seed-004 §4.2).
+            let quadrature = Quadrature {
+                spacing: scene.spacing,
+                horizon: scene.horizon,
+                volume_correction: scene.volume_correction,
+            };
+            Ok(standard::diffusion_operator::<D>(
+                free,
+                &lattice.volumes,
+                families,
+                &quadrature,
+                &kernel,
+            ))
+        }
+        Some(order) => {
+            let basis = Basis::new(D, order);
+            let l = wls::diffusion_l(
+                &basis,
+                kernel.diffusivity,
+                kernel.exponent,
+                scene.horizon,
+                kernel.influence,
+            );
+            wls::diffusion_operator(
+                free,
+                &lattice.positions,
+                families,
+                &basis,
+                &l,
+                scene.horizon,
+                scene.scheme.collocation_factor,
+            )
+            .map_err(|e| e.to_string())
+        }
+    }
+}
+
+impl<const D: usize> ScalarSimulation<D> {
+    pub fn new(scene: &Scene) -> Result<Self, SceneError> {
+        let error = |field: &str, message: String| SceneError {
+            file: scene.source.clone(),
+            field: field.to_string(),
+            line: locate_field(&scene.preset_text, field),
+            message,
+        };
+        let lattice =
+            Lattice::<D>::build(&scene.solid, scene.spacing, scene.perturbation, scene.seed);
+        if lattice.is_empty() {
+            return Err(error(
+                "geometry",
+                "the body contains no lattice node; check its size against discretization.spacing"
+                    .into(),
+            ));
+        }
+        let (lo, hi) = scene.solid.bounds();
+        let eps = 1e-9 * scene.spacing;
+        let mut is_held = vec![false; lattice.len()];
+        for (l, layer) in scene.boundary.iter().enumerate() {
+            let mut count = 0;
+            for (i, x) in lattice.positions.iter().enumerate() {
+                if layer.condition == Condition::Reference && layer.contains(x, &lo, &hi, eps) {
+                    is_held[i] = true;
+                    count += 1;
+                }
+            }
+            if count == 0 {
+                return Err(error(
+                    &format!("boundary[{l}]"),
+                    format!(
+                        "layer `{}` selects no node; widen its region or thickness",
+                        layer.name
+                    ),
+                ));
+            }
+        }
+        let free: Vec<u32> = (0..lattice.len() as u32)
+            .filter(|&i| !is_held[i as usize])
+            .collect();
+        let held: Vec<u32> = (0..lattice.len() as u32)
+            .filter(|&i| is_held[i as usize])
+            .collect();
+        if free.is_empty() {
+            return Err(error(
+                "boundary",
+                "the held layers cover every node: nothing is left to solve".into(),
+            ));
+        }
+        let radius = family::search_radius(scene.family_radius, scene.horizon, scene.spacing);
+        let families = Families::build(&lattice.positions, radius);
+        let operator = assemble(scene, &lattice, &families, &free)
+            .map_err(|m| error("discretization.collocation_factor", m))?;
+
+        let reference = scene.reference;
+        let field: Vec<f64> = lattice
+            .positions
+            .iter()
+            .map(|x| reference.map_or(0.0, |r| r.value(x, 0.0)))
+            .collect();
+        let amplitude = reference
+            .map_or(0.0, |r| {
+                r.amplitude(lattice.positions.iter().map(|x| x.as_slice()))
+            })
+            .max(field.iter().fold(0.0, |a: f64, v| a.max(v.abs())));
+
+        let (dt, stable_dt, total_steps) = match scene.physics {
+            Physics::Static => (0.0, f64::INFINITY, 1),
+            _ => {
+                let n = lattice.len();
+                let radius = stability::spectral_radius(n, POWER_ITERATIONS, |v, out| {
+                    operator.apply(v, out)
+                });
+                let stable_dt = stability::euler_limit(radius * SPECTRAL_MARGIN);
+                let dt = match scene.time.step {
+                    StepSize::Absolute(dt) => {
+                        if dt > stable_dt && !scene.time.allow_unstable {
+                            return Err(error(
+                                "time.dt",
+                                format!(
+                                    "{dt:.4e} s is {:.2}× forward Euler's bound {stable_dt:.4e} s \
+                                     (2/ρ, ρ the operator's spectral radius by power iteration); \
+                                     lower it, use dt = \"0.9 stable\", or set time.allow_unstable = true",
+                                    dt / stable_dt
+                                ),
+                            ));
+                        }
+                        dt
+                    }
+                    StepSize::FractionOfStable(f) => f * stable_dt,
+                };
+                let steps = match scene.time.duration {
+                    Duration::Steps(n) => n,
+                    Duration::End(t) => ((t / dt) - 1e-9).ceil().max(1.0) as u64,
+                };
+                (dt, stable_dt, steps)
+            }
+        };
+        let rows = operator.rows.len();
+        Ok(ScalarSimulation {
+            scene: scene.clone(),
+            positions: lattice.positions,
+            volumes: lattice.volumes,
+            operator,
+            held,
+            field,
+            rate: vec![0.0; rows],
+            reference,
+            dt,
+            stable_dt,
+            total_steps,
+            frame_every: scene.output_every.unwrap_or((total_steps / 100).max(1)),
+            step: 0,
+            timers: StageTimers::default(),
+            amplitude,
+            last_frame: (0, Instant::now()),
+        })
+    }
+
+    /// The current field, one value per node.
+    pub fn field(&self) -> &[f64] {
+        &self.field
+    }
+
+    pub fn positions(&self) -> &[[f64; D]] {
+        &self.positions
+    }
+
+    pub fn operator(&self) -> &ScalarOperator {
+        &self.operator
+    }
+
+    /// Relative ℓ² error (66)/(3.79) over all nodes against the reference, if any.
+    pub fn relative_error(&self) -> Option<f64> {
+        let r = self.reference?;
+        let t = self.time();
+        let (num, den) =
+            self.positions
+                .iter()
+                .zip(&self.field)
+                .fold((0.0, 0.0), |(n, d), (x, v)| {
+                    let e = r.value(x, t);
+                    (n + (v - e).powi(2), d + e * e)
+                });
+        Some(if den > 0.0 {
+            (num / den).sqrt()
+        } else {
+            num.sqrt()
+        })
+    }
+
+    fn hold_reference(&mut self, t: f64) {
+        if let Some(r) = self.reference {
+            for &i in &self.held {
+                self.field[i as usize] = r.value(&self.positions[i as usize], t);
+            }
+        }
+    }
+
+    /// One global solve of 0 = L u + b on the free nodes, held values moved to the right.
+    fn solve_static(&mut self) -> Result<(), SimError> {
+        let n = self.positions.len();
+        let mut unknown = vec![u32::MAX; n];
+        for (r, &i) in self.operator.rows.iter().enumerate() {
+            unknown[i as usize] = r as u32;
+        }
+        let op = &self.operator;
+        let unknown = &unknown;
+        let (lower, upper) = BandMatrix::bandwidths((0..op.rows.len()).flat_map(|r| {
+            op.columns[op.offsets[r]..op.offsets[r + 1]]
+                .iter()
+                .filter(|&&j| unknown[j as usize] != u32::MAX)
+                .map(move |&j| (r, unknown[j as usize] as usize))
+        }));
+        let mut matrix = BandMatrix::new(op.rows.len(), lower, upper)
+            .map_err(|e| SimError::Solve(e.to_string()))?;
+        let mut rhs = vec![0.0; op.rows.len()];
+        let horizon = self.scene.horizon;
+        for (r, &i) in op.rows.iter().enumerate() {
+            let x = &self.positions[i as usize];
+            rhs[r] = -self.reference.map_or(0.0, |rf| rf.forcing(x, 0.0, horizon));
+            for e in op.offsets[r]..op.offsets[r + 1] {
+                let j = op.columns[e] as usize;
+                match unknown[j] {
+                    u32::MAX => rhs[r] -= op.weights[e] * self.field[j],
+                    col => matrix.add(r, col as usize, op.weights[e]),
+                }
+            }
+        }
+        matrix
+            .solve(&mut rhs)
+            .map_err(|e| SimError::Solve(e.to_string()))?;
+        for (r, &i) in op.rows.iter().enumerate() {
+            self.field[i as usize] = rhs[r];
+        }
+        Ok(())
+    }
+
+    /// Forward Euler (31): C⁺ = C + Δt (L C + S) on the free nodes; returns max |C⁺|.
+    fn euler_update(&mut self, t: f64) -> f64 {
+        let (dt, horizon) = (self.dt, self.scene.horizon);
+        let reference = self.reference;
+        let positions = &self.positions;
+        let field = &self.field;
+        let rows = &self.operator.rows;
+        let updated: f64 = self
+            .rate
+            .par_iter_mut()
+            .enumerate()
+            .map(|(r, rate)| {
+                let i = rows[r] as usize;
+                let source = reference.map_or(0.0, |rf| rf.forcing(&positions[i], t, horizon));
+                *rate = field[i] + dt * (*rate + source);
+                rate.abs()
+            })
+            .reduce(|| 0.0, f64::max);
+        for (r, &i) in rows.iter().enumerate() {
+            self.field[i as usize] = self.rate[r];
+        }
+        updated
+    }
+}
+
+impl<const D: usize> Stepper for ScalarSimulation<D> {
+    fn step(&mut self) -> Result<(), SimError> {
+        let t0 = Instant::now();
+        if self.scene.physics == Physics::Static {
+            self.solve_static()?;
+            self.timers.forces += t0.elapsed();
+            self.step += 1;
+            return Ok(());
+        }
+        let t = self.time();
+        self.operator.apply_rows(&self.field, &mut self.rate);
+        let t1 = Instant::now();
+        let max_value = self.euler_update(t);
+        let t2 = Instant::now();
+        self.hold_reference(t + self.dt);
+        let t3 = Instant::now();
+        self.timers.forces += t1 - t0;
+        self.timers.kick += t2 - t1;
+        self.timers.constraints += t3 - t2;
+        self.step += 1;
+        let scale = self.amplitude.max(f64::MIN_POSITIVE);
+        if !max_value.is_finite() || max_value > DIVERGENCE_FACTOR * scale {
+            return Err(SimError::Diverged {
+                step: self.step,
+                time: self.time(),
+                max_value,
+                dt: self.dt,
+                stable_dt: self.stable_dt,
+            });
+        }
+        Ok(())
+    }
+
+    fn frame(&mut self) -> Frame {
+        let t = self.time();
+        let error: Vec<f64> = match self.reference {
+            Some(r) => self
+                .positions
+                .iter()
+                .zip(&self.field)
+                .map(|(x, v)| v - r.value(x, t))
+                .collect(),
+            None => vec![0.0; self.field.len()],
+        };
+        let max_error = error.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+        let now = Instant::now();
+        let steps_since = self.step.saturating_sub(self.last_frame.0);
+        let step_wall = if steps_since > 0 {
+            (now - self.last_frame.1).as_secs_f64() / steps_since as f64
+        } else {
+            0.0
+        };
+        self.last_frame = (self.step, now);
+        let integral: f64 = self
+            .field
+            .iter()
+            .zip(&self.volumes)
+            .map(|(c, v)| c * v)
+            .sum();
+        let mut scalars = vec![
+            ("field/integral".to_string(), integral),
+            ("error/max_abs".to_string(), max_error),
+            ("timing/step_wall_s".to_string(), step_wall),
+        ];
+        if let Some(e) = self.relative_error() {
+            scalars.push(("error/relative_l2".to_string(), e));
+        }
+        let name = match self.scene.physics {
+            Physics::Static => "displacement",
+            _ => "concentration",
+        };
+        let amplitude = if self.amplitude > 0.0 {
+            self.amplitude
+        } else {
+            1.0
+        };
+        let error_range = if max_error > 0.0 { max_error } else { 1.0 };
+        Frame {
+            step: self.step,
+            time: t,
+            dim: D,
+            positions: self.positions.iter().flatten().copied().collect(),
+            fields: vec![
+                NodeField {
+                    name,
+                    values: self.field.clone(),
+                    range: (-amplitude, amplitude),
+                },
+                NodeField {
+                    name: "error",
+                    values: error,
+                    range: (-error_range, error_range),
+                },
+            ],
+            scalars,
+        }
+    }
+
+    fn info(&self) -> SimInfo {
+        let op = &self.operator;
+        SimInfo {
+            dim: D,
+            nodes: self.positions.len(),
+            bonds: op.columns.len(),
+            dt: self.dt,
+            stable_dt: self.stable_dt,
+            gershgorin_dt: self.stable_dt,
+            total_steps: self.total_steps,
+            frame_every: self.frame_every,
+            bytes_per_bond: 12.0,
+            stencil: op.columns.len() as f64 / op.rows.len().max(1) as f64,
+        }
+    }
+
+    fn steps_done(&self) -> u64 {
+        self.step
+    }
+
+    fn time(&self) -> f64 {
+        self.step as f64 * self.dt
+    }
+
+    fn timers(&self) -> &StageTimers {
+        &self.timers
+    }
+
+    fn crack_angles(&self) -> Vec<(String, Option<f64>)> {
+        Vec::new()
+    }
+
+    fn broken_bonds(&self) -> u64 {
+        0
+    }
+
+    fn relative_error(&self) -> Option<f64> {
+        ScalarSimulation::relative_error(self)
+    }
+}
