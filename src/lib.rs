@@ -13,6 +13,7 @@ pub mod metrics;
 pub mod model;
 pub mod readback;
 pub mod record;
+pub mod report;
 pub mod runner;
 pub mod scalar;
 pub mod scene;

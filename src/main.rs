@@ -10,8 +10,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use peridyn::record::{RecordTarget, RerunSink};
 use peridyn::runner::{self, RunSummary};
-use peridyn::scene::{Physics, Scene, builtin};
-use peridyn::{bench, sim};
+use peridyn::scene::{Physics, Scene, SchemeKind, builtin};
+use peridyn::{bench, report, sim};
 
 #[derive(Parser)]
 #[command(
@@ -61,6 +61,28 @@ enum Command {
         output: Option<PathBuf>,
         #[command(flatten)]
         run: RunArgs,
+    },
+    /// Speed against error: run a preset over values and schemes; write CSV, Markdown and PNG
+    /// plots (error vs nodes, error vs wall time) into a folder.
+    Sweep {
+        /// A built-in preset name or a path to a preset .toml file.
+        preset: String,
+        /// Preset variant, e.g. `perturbed`.
+        #[arg(long)]
+        variant: Option<String>,
+        /// A preset key and its values, e.g. `discretization.spacing=1,0.5,0.25` (repeatable:
+        /// every combination runs).
+        #[arg(long, value_name = "KEY=V1,V2,…", required = true)]
+        vary: Vec<String>,
+        /// Schemes to compare, e.g. `standard,wls-2,wls-4`.
+        #[arg(long, value_delimiter = ',', default_value = "standard,wls-2,wls-4")]
+        schemes: Vec<String>,
+        /// Fixed overrides for every run, as with `record --set`.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// Output folder.
+        #[arg(short, long, default_value = "sweep")]
+        out: PathBuf,
     },
     /// Throughput benchmark on the pmb-block-3d preset (single- and all-thread).
     Bench {
@@ -199,6 +221,56 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
             };
             let summary = simulate(&loaded, target, &run)?;
             Ok(exit_code(&summary))
+        }
+        Command::Sweep {
+            preset,
+            variant,
+            vary,
+            schemes,
+            set,
+            out,
+        } => {
+            let axes = vary
+                .iter()
+                .map(|v| report::Axis::parse(v))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(Failure::BadInput)?;
+            let schemes = schemes
+                .iter()
+                .map(|name| {
+                    SchemeKind::ALL
+                        .into_iter()
+                        .find(|k| k.name() == name.trim())
+                        .ok_or_else(|| {
+                            let known: Vec<&str> =
+                                SchemeKind::ALL.iter().map(|k| k.name()).collect();
+                            Failure::BadInput(format!(
+                                "--schemes: unknown scheme `{name}` (known: {})",
+                                known.join(", ")
+                            ))
+                        })
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            let spec = report::SweepSpec {
+                preset,
+                variant,
+                set,
+                axes,
+                schemes,
+            };
+            let total =
+                spec.schemes.len() * spec.axes.iter().map(|a| a.values.len()).product::<usize>();
+            let mut done = 0;
+            let rows = report::run(&spec, &mut |label| {
+                done += 1;
+                eprintln!("[{done}/{total}] {label}");
+            })
+            .map_err(Failure::BadInput)?;
+            print!("{}", report::markdown(&spec, &rows));
+            for path in report::write(&out, &spec, &rows).map_err(Failure::Runtime)? {
+                println!("wrote {path}");
+            }
+            Ok(ExitCode::SUCCESS)
         }
         Command::Bench { steps, variant } => {
             let report = bench::run(variant.as_deref(), steps).map_err(Failure::Runtime)?;

@@ -108,7 +108,7 @@ fn homogeneous_strain_case<const D: usize>(
     let bulk_force = max_force(&sim, inner.iter().copied());
     let c = centre(&sim);
     let pd = sim.energy_density(c);
-    let plane = sim.scene.material.plane;
+    let plane = sim.scene.material.as_ref().unwrap().plane;
     let classical = classical_energy::<D>(1e9, poisson_ratio(D, plane), plane, eps);
     (bulk_force / boundary_force, pd, classical)
 }
