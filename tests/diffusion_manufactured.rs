@@ -98,3 +98,25 @@ fn forward_euler_bound_for_the_wls_operator() {
     assert!(message.contains("forward Euler diverged"), "{message}");
     assert!(message.contains("1.20×"), "{message}");
 }
+
+/// WLS-4's error on the uniform grid is forward Euler's: halving Δt (same T = 0.1) halves it,
+/// while WLS-2's, dominated by its spatial error (it misses the 7πδ⁴/16 term), barely moves.
+#[test]
+fn wls4_error_is_time_stepping_error() {
+    let error = |scheme: &str, dt: &str, steps: &str| -> f64 {
+        let set = [
+            format!("discretization.scheme={scheme}"),
+            format!("time.dt={dt}"),
+            format!("time.end=\"{steps} steps\""),
+        ];
+        let scene = Scene::load_with(PRESET, None, &set).unwrap();
+        let mut sim = sim::build(&scene).unwrap();
+        let summary = runner::run(sim.as_mut(), &mut NullSink, &Default::default(), None, &mut |_, _| {});
+        summary.relative_error.unwrap()
+    };
+    let wls4 = error("wls-4", "1e-5", "10000") / error("wls-4", "5e-6", "20000");
+    let wls2 = error("wls-2", "1e-5", "10000") / error("wls-2", "5e-6", "20000");
+    eprintln!("error ratio Δt → Δt/2: WLS-4 {wls4:.3}, WLS-2 {wls2:.3}");
+    assert!((wls4 - 2.0).abs() < 0.1, "{wls4}");
+    assert!((wls2 - 1.0).abs() < 0.2, "{wls2}");
+}
