@@ -59,3 +59,50 @@ impl ScalarOperator {
         }
     }
 }
+
+/// A linear operator on a vector node field (D components per node), as sparse rows of D × D
+/// blocks: out_i = Σ_j K_ij values_j. The WLS elasticity operator K_ij = L̄ Q̄_i (§3.5).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VectorOperator<const D: usize> {
+    pub rows: Vec<u32>,
+    pub offsets: Vec<usize>,
+    pub columns: Vec<u32>,
+    /// blocks[e][k][l]: force component k from displacement component l of column e.
+    pub blocks: Vec<[[f64; D]; D]>,
+}
+
+impl<const D: usize> VectorOperator<D> {
+    pub fn from_rows(rows: &[u32], per_row: Vec<(Vec<u32>, Vec<[[f64; D]; D]>)>) -> Self {
+        let mut offsets = Vec::with_capacity(rows.len() + 1);
+        offsets.push(0);
+        let (mut columns, mut blocks) = (Vec::new(), Vec::new());
+        for (set, b) in per_row {
+            columns.extend(set);
+            blocks.extend(b);
+            offsets.push(columns.len());
+        }
+        VectorOperator {
+            rows: rows.to_vec(),
+            offsets,
+            columns,
+            blocks,
+        }
+    }
+
+    /// out[r] = Σ_j K_rj values[j], one entry per row, in parallel; no allocation.
+    pub fn apply_rows(&self, values: &[[f64; D]], out: &mut [[f64; D]]) {
+        out.par_iter_mut().enumerate().for_each(|(r, o)| {
+            let mut acc = [0.0; D];
+            for e in self.offsets[r]..self.offsets[r + 1] {
+                let u = &values[self.columns[e] as usize];
+                let block = &self.blocks[e];
+                for k in 0..D {
+                    for l in 0..D {
+                        acc[k] += block[k][l] * u[l];
+                    }
+                }
+            }
+            *o = acc;
+        });
+    }
+}

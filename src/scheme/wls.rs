@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::family::Families;
 use crate::scene::Influence;
-use crate::scheme::ScalarOperator;
+use crate::scheme::{ScalarOperator, VectorOperator};
 
 /// Monomials ξ^α of total degree ≤ `order` in `dim` dimensions, ordered by degree and, within
 /// a degree, by decreasing x then y exponent: 3D C² is (1, x, y, z, x², xy, xz, y², yz, z²)
@@ -310,9 +310,29 @@ pub fn scale_to_fit(basis: &Basis, l: &[f64], horizon: f64) -> DVector<f64> {
     )
 }
 
+/// For each node of `rows` (in parallel): its collocation set and fit Q_i, handed to `block`
+/// which turns them into that row's weights. The first node whose fit fails is reported.
+fn fitted_rows<const D: usize, T: Send>(
+    rows: &[u32],
+    positions: &[[f64; D]],
+    families: &Families,
+    basis: &Basis,
+    horizon: f64,
+    k_aux: usize,
+    block: impl Fn(&DMatrix<f64>) -> Vec<T> + Sync,
+) -> Result<Vec<(Vec<u32>, Vec<T>)>, FitError> {
+    use rayon::prelude::*;
+    rows.par_iter()
+        .map(|&i| {
+            let set = collocation_set(i as usize, positions, families, horizon, k_aux);
+            let q = fit_matrix(i as usize, &set, positions, basis, horizon)?;
+            Ok((set, block(&q)))
+        })
+        .collect()
+}
+
 /// Per-node weight rows of the WLS diffusion operator (§3.4): row of node i holds
-/// (L_C Q_i)_j for its collocation nodes j. Rows are built in parallel; the first node whose
-/// fit fails is reported.
+/// w_ij = (L_C Q_i)_j for its collocation nodes j (seed-004 §2.7 step 2.4).
 pub fn diffusion_operator<const D: usize>(
     rows: &[u32],
     positions: &[[f64; D]],
@@ -322,18 +342,105 @@ pub fn diffusion_operator<const D: usize>(
     horizon: f64,
     k_aux: usize,
 ) -> Result<ScalarOperator, FitError> {
-    use rayon::prelude::*;
     let l_scaled = scale_to_fit(basis, l, horizon).transpose();
-    let blocks: Vec<(Vec<u32>, Vec<f64>)> = rows
-        .par_iter()
-        .map(|&i| {
-            let set = collocation_set(i as usize, positions, families, horizon, k_aux);
-            let q = fit_matrix(i as usize, &set, positions, basis, horizon)?;
-            let w = &l_scaled * q;
-            Ok((set, w.iter().copied().collect()))
-        })
-        .collect::<Result<_, FitError>>()?;
+    let blocks = fitted_rows(rows, positions, families, basis, horizon, k_aux, |q| {
+        (&l_scaled * q).iter().copied().collect()
+    })?;
     Ok(ScalarOperator::from_rows(rows, blocks))
+}
+
+/// Per-node D × D blocks K_ij = L̄ Q̄_i of a WLS elasticity operator (§3.5, seed-004 §2.7):
+/// `l[k][l][α]` as returned by `bond_l` or `lps_shear_l`.
+pub fn elasticity_operator<const D: usize>(
+    rows: &[u32],
+    positions: &[[f64; D]],
+    families: &Families,
+    basis: &Basis,
+    l: &[Vec<Vec<f64>>],
+    horizon: f64,
+    k_aux: usize,
+) -> Result<VectorOperator<D>, FitError> {
+    let scaled: Vec<Vec<nalgebra::RowDVector<f64>>> = l
+        .iter()
+        .map(|row| {
+            row.iter()
+                .map(|entry| scale_to_fit(basis, entry, horizon).transpose())
+                .collect()
+        })
+        .collect();
+    let per_row = fitted_rows(rows, positions, families, basis, horizon, k_aux, |q| {
+        let weights: Vec<Vec<nalgebra::RowDVector<f64>>> = scaled
+            .iter()
+            .map(|row| row.iter().map(|lk| lk * q).collect())
+            .collect();
+        (0..q.ncols())
+            .map(|j| std::array::from_fn(|k| std::array::from_fn(|c| weights[k][c][j])))
+            .collect()
+    })?;
+    Ok(VectorOperator::from_rows(rows, per_row))
+}
+
+/// Weighted volume m̄ = ∫_H ω ‖ξ‖² dV (LPS).
+pub fn weighted_volume(dim: usize, horizon: f64, influence: Influence) -> f64 {
+    radial_moment(dim as f64 + 1.0, horizon, influence) * angular_moment([0; 3], dim)
+}
+
+/// L_J of the linearized LPS shear term J = ∫ 30G/m̄ ω ξ⊗ξ/‖ξ‖² (u' − u) dV (seed-004 §2.5,
+/// seed-003 (3.51)): entry [k][l][α] = 30G/m̄ R(n + n_d − 1) S(α + e_k + e_l) — "(51) with
+/// λ → 6G" (u = (x², 0, 0) gives 6G).
+pub fn lps_shear_l(basis: &Basis, shear_modulus: f64, horizon: f64, influence: Influence) -> Vec<Vec<Vec<f64>>> {
+    let d = basis.dim;
+    let factor = 30.0 * shear_modulus / weighted_volume(d, horizon, influence);
+    (0..d)
+        .map(|k| {
+            (0..d)
+                .map(|l| {
+                    per_monomial(basis, |alpha, n| {
+                        let mut beta = alpha;
+                        beta[k] += 1;
+                        beta[l] += 1;
+                        factor
+                            * radial_moment(n as f64 + d as f64 - 1.0, horizon, influence)
+                            * angular_moment(beta, d)
+                    })
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// L_θ of the linearized dilatation θ = 3/m̄ ∫ ω ξ·(u' − u) dV: entry [l][α] =
+/// 3/m̄ R(n + n_d) S(α + e_l). With the 3/m̄ prefactor (seed-004 §2.5 erratum) the C² rows
+/// are exactly 1 at the linear monomials: θ = a_x + a_y + a_z.
+pub fn lps_dilatation_l(basis: &Basis, horizon: f64, influence: Influence) -> Vec<Vec<f64>> {
+    let d = basis.dim;
+    let factor = 3.0 / weighted_volume(d, horizon, influence);
+    (0..d)
+        .map(|l| {
+            per_monomial(basis, |alpha, n| {
+                let mut beta = alpha;
+                beta[l] += 1;
+                factor * radial_moment(n as f64 + d as f64, horizon, influence) * angular_moment(beta, d)
+            })
+        })
+        .collect()
+}
+
+/// L_I of the dilatation term I = ∫ (3K − 5G)/m̄ ω (θ + θ') ξ dV fitted on the nodal θ
+/// (seed-004 §2.5; erratum: (3.51)'s first term reads L_I Q_i Θ_i): entry [k][α] =
+/// (3K − 5G)/m̄ R(n + n_d) S(α + e_k), = (3K − 5G)/3 at α = e_k.
+pub fn lps_dilatation_force_l(
+    basis: &Basis,
+    bulk_modulus: f64,
+    shear_modulus: f64,
+    horizon: f64,
+    influence: Influence,
+) -> Vec<Vec<f64>> {
+    let scale = (3.0 * bulk_modulus - 5.0 * shear_modulus) / 3.0;
+    lps_dilatation_l(basis, horizon, influence)
+        .into_iter()
+        .map(|row| row.into_iter().map(|v| v * scale).collect())
+        .collect()
 }
 
 #[cfg(test)]
