@@ -92,6 +92,9 @@ enum Command {
         /// Preset variant to measure, e.g. `small` for a quick look.
         #[arg(long)]
         variant: Option<String>,
+        /// Only the WLS-against-standard cost per node-step (2D m = 12, 3D m = 6).
+        #[arg(long)]
+        schemes_only: bool,
     },
 }
 
@@ -272,9 +275,16 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
             }
             Ok(ExitCode::SUCCESS)
         }
-        Command::Bench { steps, variant } => {
-            let report = bench::run(variant.as_deref(), steps).map_err(Failure::Runtime)?;
-            println!("{report}");
+        Command::Bench {
+            steps,
+            variant,
+            schemes_only,
+        } => {
+            if !schemes_only {
+                let report = bench::run(variant.as_deref(), steps).map_err(Failure::Runtime)?;
+                println!("{report}");
+            }
+            println!("{}", bench::schemes::report(0.5).map_err(Failure::Runtime)?);
             Ok(ExitCode::SUCCESS)
         }
     }

@@ -111,7 +111,13 @@ fn wls4_error_is_time_stepping_error() {
         ];
         let scene = Scene::load_with(PRESET, None, &set).unwrap();
         let mut sim = sim::build(&scene).unwrap();
-        let summary = runner::run(sim.as_mut(), &mut NullSink, &Default::default(), None, &mut |_, _| {});
+        let summary = runner::run(
+            sim.as_mut(),
+            &mut NullSink,
+            &Default::default(),
+            None,
+            &mut |_, _| {},
+        );
         summary.relative_error.unwrap()
     };
     let wls4 = error("wls-4", "1e-5", "10000") / error("wls-4", "5e-6", "20000");

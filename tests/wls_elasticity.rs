@@ -23,6 +23,7 @@ impl<const D: usize> Quadratic<D> {
         }
     }
     /// Second derivatives H[k][a][b] of component k (monomials x_a x_b, a ≤ b, in order).
+    #[allow(clippy::needless_range_loop)]
     fn hessian(&self) -> [[[f64; 3]; 3]; D] {
         std::array::from_fn(|k| {
             let mut h = [[0.0; 3]; 3];
@@ -113,7 +114,10 @@ fn bond_based_2d_operator_is_navier_on_quadratic_fields() {
     let expected = field.navier(mu, lambda + mu);
     for (r, f) in out.iter().enumerate() {
         for k in 0..2 {
-            assert!((f[k] - expected[k]).abs() < 1e-9, "row {r}: {f:?} vs {expected:?}");
+            assert!(
+                (f[k] - expected[k]).abs() < 1e-9,
+                "row {r}: {f:?} vs {expected:?}"
+            );
         }
     }
     // Rigid translation gives no force.
@@ -135,7 +139,12 @@ fn lps_3d_operator_gives_the_navier_operator() {
     let influence = Influence::Constant;
     let centre = (0..lat.len())
         .min_by(|&a, &b| {
-            let d = |i: usize| lat.positions[i].iter().map(|x| (x - side / 2.0).powi(2)).sum::<f64>();
+            let d = |i: usize| {
+                lat.positions[i]
+                    .iter()
+                    .map(|x| (x - side / 2.0).powi(2))
+                    .sum::<f64>()
+            };
             d(a).total_cmp(&d(b))
         })
         .unwrap() as u32;
@@ -153,7 +162,8 @@ fn lps_3d_operator_gives_the_navier_operator() {
             let q = wls::fit_matrix(j as usize, &cs, &lat.positions, &basis, m).unwrap();
             (0..3)
                 .map(|l| {
-                    let values = DVector::from_iterator(cs.len(), cs.iter().map(|&n| u[n as usize][l]));
+                    let values =
+                        DVector::from_iterator(cs.len(), cs.iter().map(|&n| u[n as usize][l]));
                     (wls::scale_to_fit(&basis, &l_theta[l], m).transpose() * &q * values)[(0, 0)]
                 })
                 .sum()
@@ -166,8 +176,16 @@ fn lps_3d_operator_gives_the_navier_operator() {
 
     // Pass 2: J from the shear operator, I from the fitted dilatations.
     let l_shear = wls::lps_shear_l(&basis, shear, m, influence);
-    let op = wls::elasticity_operator(&[centre], &lat.positions, &families, &basis, &l_shear, m, k_aux)
-        .unwrap();
+    let op = wls::elasticity_operator(
+        &[centre],
+        &lat.positions,
+        &families,
+        &basis,
+        &l_shear,
+        m,
+        k_aux,
+    )
+    .unwrap();
     assert_eq!(op.columns.len(), 123, "123 collocation nodes (δ/3) in 3D");
     let mut j_force = [[0.0; 3]];
     op.apply_rows(&u, &mut j_force);
@@ -175,10 +193,16 @@ fn lps_3d_operator_gives_the_navier_operator() {
     let l_i = wls::lps_dilatation_force_l(&basis, bulk, shear, m, influence);
     let theta = DVector::from_vec(theta);
     let force: Vec<f64> = (0..3)
-        .map(|k| j_force[0][k] + (wls::scale_to_fit(&basis, &l_i[k], m).transpose() * &q * &theta)[(0, 0)])
+        .map(|k| {
+            j_force[0][k]
+                + (wls::scale_to_fit(&basis, &l_i[k], m).transpose() * &q * &theta)[(0, 0)]
+        })
         .collect();
     let expected = field.navier(shear, bulk + shear / 3.0);
     for k in 0..3 {
-        assert!((force[k] - expected[k]).abs() < 1e-8, "{force:?} vs {expected:?}");
+        assert!(
+            (force[k] - expected[k]).abs() < 1e-8,
+            "{force:?} vs {expected:?}"
+        );
     }
 }

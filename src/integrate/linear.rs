@@ -142,13 +142,19 @@ mod tests {
         let mut dense = vec![vec![0.0; n]; n];
         let mut a = BandMatrix::new(n, lower, upper).unwrap();
         for (r, row) in dense.iter_mut().enumerate() {
-            for c in r.saturating_sub(lower)..=(r + upper).min(n - 1) {
+            let first = r.saturating_sub(lower);
+            for (c, entry) in row
+                .iter_mut()
+                .enumerate()
+                .take((r + upper).min(n - 1) + 1)
+                .skip(first)
+            {
                 let v = if c == r && r % 7 == 0 {
                     0.0
                 } else {
                     rng.next_f64() - 0.5
                 };
-                row[c] = v;
+                *entry = v;
                 a.add(r, c, v);
             }
         }

@@ -35,7 +35,7 @@ impl Reference {
                         .into());
                 };
                 let length = length.si();
-                if !(length > 0.0) {
+                if length.is_nan() || length <= 0.0 {
                     return Err(format!("reference.length: must be > 0, got {length}"));
                 }
                 if m.influence != Influence::Constant {

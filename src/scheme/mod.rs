@@ -18,7 +18,7 @@ pub struct ScalarOperator {
 
 impl ScalarOperator {
     /// From per-row (columns, weights) blocks, in the order of `rows`.
-    pub fn from_rows(rows: &[u32], blocks: Vec<(Vec<u32>, Vec<f64>)>) -> Self {
+    pub fn from_rows(rows: &[u32], blocks: Vec<Row<f64>>) -> Self {
         let mut offsets = Vec::with_capacity(rows.len() + 1);
         offsets.push(0);
         let (mut columns, mut weights) = (Vec::new(), Vec::new());
@@ -60,6 +60,9 @@ impl ScalarOperator {
     }
 }
 
+/// One row of a sparse operator: its columns and their weights (scalars or blocks).
+pub type Row<T> = (Vec<u32>, Vec<T>);
+
 /// A linear operator on a vector node field (D components per node), as sparse rows of D × D
 /// blocks: out_i = Σ_j K_ij values_j. The WLS elasticity operator K_ij = L̄ Q̄_i (§3.5).
 #[derive(Debug, Clone, PartialEq)]
@@ -72,7 +75,7 @@ pub struct VectorOperator<const D: usize> {
 }
 
 impl<const D: usize> VectorOperator<D> {
-    pub fn from_rows(rows: &[u32], per_row: Vec<(Vec<u32>, Vec<[[f64; D]; D]>)>) -> Self {
+    pub fn from_rows(rows: &[u32], per_row: Vec<Row<[[f64; D]; D]>>) -> Self {
         let mut offsets = Vec::with_capacity(rows.len() + 1);
         offsets.push(0);
         let (mut columns, mut blocks) = (Vec::new(), Vec::new());

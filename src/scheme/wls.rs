@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::family::Families;
 use crate::scene::Influence;
-use crate::scheme::{ScalarOperator, VectorOperator};
+use crate::scheme::{Row, ScalarOperator, VectorOperator};
 
 /// Monomials ξ^α of total degree ≤ `order` in `dim` dimensions, ordered by degree and, within
 /// a degree, by decreasing x then y exponent: 3D C² is (1, x, y, z, x², xy, xz, y², yz, z²)
@@ -320,7 +320,7 @@ fn fitted_rows<const D: usize, T: Send>(
     horizon: f64,
     k_aux: usize,
     block: impl Fn(&DMatrix<f64>) -> Vec<T> + Sync,
-) -> Result<Vec<(Vec<u32>, Vec<T>)>, FitError> {
+) -> Result<Vec<Row<T>>, FitError> {
     use rayon::prelude::*;
     rows.par_iter()
         .map(|&i| {
@@ -388,7 +388,12 @@ pub fn weighted_volume(dim: usize, horizon: f64, influence: Influence) -> f64 {
 /// L_J of the linearized LPS shear term J = ∫ 30G/m̄ ω ξ⊗ξ/‖ξ‖² (u' − u) dV (seed-004 §2.5,
 /// seed-003 (3.51)): entry [k][l][α] = 30G/m̄ R(n + n_d − 1) S(α + e_k + e_l) — "(51) with
 /// λ → 6G" (u = (x², 0, 0) gives 6G).
-pub fn lps_shear_l(basis: &Basis, shear_modulus: f64, horizon: f64, influence: Influence) -> Vec<Vec<Vec<f64>>> {
+pub fn lps_shear_l(
+    basis: &Basis,
+    shear_modulus: f64,
+    horizon: f64,
+    influence: Influence,
+) -> Vec<Vec<Vec<f64>>> {
     let d = basis.dim;
     let factor = 30.0 * shear_modulus / weighted_volume(d, horizon, influence);
     (0..d)
@@ -420,7 +425,9 @@ pub fn lps_dilatation_l(basis: &Basis, horizon: f64, influence: Influence) -> Ve
             per_monomial(basis, |alpha, n| {
                 let mut beta = alpha;
                 beta[l] += 1;
-                factor * radial_moment(n as f64 + d as f64, horizon, influence) * angular_moment(beta, d)
+                factor
+                    * radial_moment(n as f64 + d as f64, horizon, influence)
+                    * angular_moment(beta, d)
             })
         })
         .collect()
