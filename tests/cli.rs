@@ -319,3 +319,135 @@ fn a_scene_too_large_for_memory_is_refused_before_building() {
         &["discretization.horizon", "directed bonds", "GB"],
     );
 }
+
+#[test]
+fn diffusion_recording_holds_concentration_error_and_error_norm() {
+    let path = temp("diffusion-small.rrd");
+    let out = peridyn(&[
+        "record",
+        "diffusion-2d-manufactured",
+        "--variant",
+        "small",
+        "--set",
+        "discretization.scheme=wls-4",
+        "-o",
+        path.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let printed: f64 = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix("relative l2 error (3.79): "))
+        .unwrap_or_else(|| panic!("{stdout}"))
+        .parse()
+        .unwrap();
+    let rec = readback::read(&path).unwrap();
+    for entity in ["/nodes/concentration", "/nodes/error"] {
+        let content = rec.entity(entity).unwrap_or_else(|| panic!("no {entity}"));
+        assert_eq!(content.values.len(), 11, "{entity}: frames at 0, 100, …, 1000");
+        assert!(content.values.values().all(|v| v.len() == 1600));
+    }
+    let errors = &rec.entity("/metrics/error/relative_l2").unwrap().scalars;
+    let (&last_step, &last) = errors.iter().last().unwrap();
+    assert_eq!(last_step, 1000);
+    assert!((last - printed).abs() <= 1e-6 * printed, "{last} vs {printed}");
+    // The logged pointwise error is the field minus the reference.
+    let field = &rec.entity("/nodes/concentration").unwrap().values[&1000];
+    let error = &rec.entity("/nodes/error").unwrap().values[&1000];
+    let max_error = error.iter().fold(0.0f32, |a, v| a.max(v.abs()));
+    assert!(max_error > 0.0 && max_error < 1e-3 * field.iter().fold(0.0f32, |a, v| a.max(v.abs())));
+}
+
+#[test]
+fn ill_conditioned_collocation_set_names_the_node_and_the_fix() {
+    let text = peridyn::scene::builtin::text("diffusion-2d-manufactured")
+        .unwrap()
+        .replace("scheme = \"wls-2\"", "scheme = \"wls-4\"\ncollocation_factor = 2");
+    assert_clear_error(
+        "ill-conditioned.toml",
+        &text,
+        &["discretization.collocation_factor", "WLS fit at node", "larger k_aux", "lower order"],
+    );
+}
+
+#[test]
+fn sweep_writes_csv_markdown_and_plots() {
+    let dir = temp("sweep-static");
+    let out = peridyn(&[
+        "sweep",
+        "static-1d-manufactured",
+        "--vary",
+        "discretization.spacing=1,0.5",
+        "--schemes",
+        "standard,wls-2",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let csv = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(
+        lines[0],
+        "scheme,discretization.spacing,nodes,stencil,steps,setup_s,run_s,error,failure"
+    );
+    assert_eq!(lines.len(), 5);
+    assert!(lines[1].starts_with("standard,1,213,13.00,1,"), "{}", lines[1]);
+    assert!(lines[2].starts_with("wls-2,1,213,5.00,1,"), "{}", lines[2]);
+    let md = std::fs::read_to_string(dir.join("sweep.md")).unwrap();
+    assert!(md.starts_with("| scheme | discretization.spacing |"), "{md}");
+    for png in ["error-vs-nodes.png", "error-vs-wall.png"] {
+        let bytes = std::fs::read(dir.join(png)).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{png}");
+        assert!(bytes.len() > 10_000, "{png} has content");
+    }
+    let bad = peridyn(&["sweep", "static-1d-manufactured", "--vary", "discretization.spacing=1", "--schemes", "wls-9"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown scheme `wls-9`"));
+}
+
+/// New scene fields of scalar-field scenes: each mistake names its field and what is allowed.
+#[test]
+fn scalar_scene_mistakes_are_named() {
+    let diffusion = peridyn::scene::builtin::text("diffusion-2d-manufactured").unwrap();
+    let cases = [
+        (
+            "bad-perturbation.toml",
+            diffusion.replace("seed = 2024", "seed = 2024\nperturbation = [0.3, 0.1]"),
+            vec!["discretization.perturbation", "lo ≤ hi"],
+        ),
+        (
+            "bad-exponent.toml",
+            diffusion.replace("kernel_exponent = 2.0", "kernel_exponent = 3.5"),
+            vec!["material.kernel_exponent", "[0, 3)"],
+        ),
+        (
+            "bad-reference.toml",
+            diffusion.replace("kernel_exponent = 2.0", "kernel_exponent = 1.0"),
+            vec!["material.kernel_exponent", "q = 2"],
+        ),
+        (
+            "bad-thickness.toml",
+            diffusion.replacen("thickness = \"1 horizon\"", "thickness = \"1 steps\"", 1),
+            vec!["boundary[0].thickness", "not a length"],
+        ),
+        (
+            "no-time.toml",
+            diffusion.replace("[time]\ndt = 1e-5\nend = \"10000 steps\"", ""),
+            vec!["time", "dt"],
+        ),
+        (
+            "dynamic-wls.toml",
+            GOOD.replace("horizon = \"3 dx\"", "horizon = \"3 dx\"\nscheme = \"wls-2\""),
+            vec!["discretization.scheme", "dynamics uses \"standard\""],
+        ),
+        (
+            "static-2d.toml",
+            GOOD.replace("dimension = 2", "dimension = 2\nphysics = \"static\""),
+            vec!["physics", "1D"],
+        ),
+    ];
+    for (name, text, needles) in cases {
+        assert_clear_error(name, &text, &needles);
+    }
+}
