@@ -365,6 +365,15 @@ fn simulate(scene: &Scene, target: RecordTarget, args: &RunArgs) -> Result<RunSu
     Ok(summary)
 }
 
+/// A ratio to a bound, readable from 10⁻⁶ to 10.
+fn ratio(r: f64) -> String {
+    if r >= 0.01 {
+        format!("{r:.3}")
+    } else {
+        format!("{r:.2e}")
+    }
+}
+
 /// One line on a built scene: size, scheme, time step against its bound, steps.
 fn describe(scene: &Scene, info: &sim::SimInfo, steps: Option<u64>) -> String {
     let name = match &scene.variant {
@@ -383,12 +392,12 @@ fn describe(scene: &Scene, info: &sim::SimInfo, steps: Option<u64>) -> String {
             info.dim, info.nodes, info.bonds
         ),
         Physics::Diffusion => format!(
-            "{name}: {}D diffusion, {} nodes, {stencil}, Δt = {:.4e} s ({:.3}× forward Euler's \
+            "{name}: {}D diffusion, {} nodes, {stencil}, Δt = {:.4e} s ({} × forward Euler's \
              bound {:.4e} s from the operator's spectral radius), {steps} steps, a frame every {}",
             info.dim,
             info.nodes,
             info.dt,
-            info.dt / info.stable_dt,
+            ratio(info.dt / info.stable_dt),
             info.stable_dt,
             info.frame_every
         ),

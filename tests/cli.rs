@@ -334,7 +334,11 @@ fn diffusion_recording_holds_concentration_error_and_error_norm() {
         path.to_str().unwrap(),
         "-q",
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
     let printed: f64 = stdout
         .lines()
@@ -345,13 +349,20 @@ fn diffusion_recording_holds_concentration_error_and_error_norm() {
     let rec = readback::read(&path).unwrap();
     for entity in ["/nodes/concentration", "/nodes/error"] {
         let content = rec.entity(entity).unwrap_or_else(|| panic!("no {entity}"));
-        assert_eq!(content.values.len(), 11, "{entity}: frames at 0, 100, …, 1000");
+        assert_eq!(
+            content.values.len(),
+            11,
+            "{entity}: frames at 0, 100, …, 1000"
+        );
         assert!(content.values.values().all(|v| v.len() == 1600));
     }
     let errors = &rec.entity("/metrics/error/relative_l2").unwrap().scalars;
     let (&last_step, &last) = errors.iter().last().unwrap();
     assert_eq!(last_step, 1000);
-    assert!((last - printed).abs() <= 1e-6 * printed, "{last} vs {printed}");
+    assert!(
+        (last - printed).abs() <= 1e-6 * printed,
+        "{last} vs {printed}"
+    );
     // The logged pointwise error is the field minus the reference.
     let field = &rec.entity("/nodes/concentration").unwrap().values[&1000];
     let error = &rec.entity("/nodes/error").unwrap().values[&1000];
@@ -363,11 +374,19 @@ fn diffusion_recording_holds_concentration_error_and_error_norm() {
 fn ill_conditioned_collocation_set_names_the_node_and_the_fix() {
     let text = peridyn::scene::builtin::text("diffusion-2d-manufactured")
         .unwrap()
-        .replace("scheme = \"wls-2\"", "scheme = \"wls-4\"\ncollocation_factor = 2");
+        .replace(
+            "scheme = \"wls-2\"",
+            "scheme = \"wls-4\"\ncollocation_factor = 2",
+        );
     assert_clear_error(
         "ill-conditioned.toml",
         &text,
-        &["discretization.collocation_factor", "WLS fit at node", "larger k_aux", "lower order"],
+        &[
+            "discretization.collocation_factor",
+            "WLS fit at node",
+            "larger k_aux",
+            "lower order",
+        ],
     );
 }
 
@@ -384,7 +403,11 @@ fn sweep_writes_csv_markdown_and_plots() {
         "--out",
         dir.to_str().unwrap(),
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let csv = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(
@@ -392,16 +415,30 @@ fn sweep_writes_csv_markdown_and_plots() {
         "scheme,discretization.spacing,nodes,stencil,steps,setup_s,run_s,error,failure"
     );
     assert_eq!(lines.len(), 5);
-    assert!(lines[1].starts_with("standard,1,213,13.00,1,"), "{}", lines[1]);
+    assert!(
+        lines[1].starts_with("standard,1,213,13.00,1,"),
+        "{}",
+        lines[1]
+    );
     assert!(lines[2].starts_with("wls-2,1,213,5.00,1,"), "{}", lines[2]);
     let md = std::fs::read_to_string(dir.join("sweep.md")).unwrap();
-    assert!(md.starts_with("| scheme | discretization.spacing |"), "{md}");
+    assert!(
+        md.starts_with("| scheme | discretization.spacing |"),
+        "{md}"
+    );
     for png in ["error-vs-nodes.png", "error-vs-wall.png"] {
         let bytes = std::fs::read(dir.join(png)).unwrap();
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{png}");
         assert!(bytes.len() > 10_000, "{png} has content");
     }
-    let bad = peridyn(&["sweep", "static-1d-manufactured", "--vary", "discretization.spacing=1", "--schemes", "wls-9"]);
+    let bad = peridyn(&[
+        "sweep",
+        "static-1d-manufactured",
+        "--vary",
+        "discretization.spacing=1",
+        "--schemes",
+        "wls-9",
+    ]);
     assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown scheme `wls-9`"));
 }
@@ -438,7 +475,10 @@ fn scalar_scene_mistakes_are_named() {
         ),
         (
             "dynamic-wls.toml",
-            GOOD.replace("horizon = \"3 dx\"", "horizon = \"3 dx\"\nscheme = \"wls-2\""),
+            GOOD.replace(
+                "horizon = \"3 dx\"",
+                "horizon = \"3 dx\"\nscheme = \"wls-2\"",
+            ),
             vec!["discretization.scheme", "dynamics uses \"standard\""],
         ),
         (

@@ -81,6 +81,8 @@ pub fn error_plot(
             .build_cartesian_2d((x_lo..x_hi).log_scale(), (y_lo..y_hi).log_scale())?;
         chart
             .configure_mesh()
+            .x_labels(6)
+            .y_labels(8)
             .x_desc(x_label)
             .y_desc("relative l2 error (3.79)")
             .y_label_formatter(&|v| format!("{v:.0e}"))
