@@ -107,6 +107,52 @@ pub fn crosses(crack: &CrackGeometry, a: &[f64], b: &[f64]) -> bool {
     }
 }
 
+/// Distance from `x` to a pre-crack (a point, segment or parallelogram patch).
+pub fn distance_to_crack(crack: &CrackGeometry, x: &[f64]) -> f64 {
+    let norm = |v: &[f64]| v.iter().map(|c| c * c).sum::<f64>().sqrt();
+    match crack {
+        CrackGeometry::Point(c) => (x[0] - c).abs(),
+        CrackGeometry::Segment(p, q) => {
+            let d = [q[0] - p[0], q[1] - p[1]];
+            let len2 = d[0] * d[0] + d[1] * d[1];
+            let t = if len2 > 0.0 {
+                (((x[0] - p[0]) * d[0] + (x[1] - p[1]) * d[1]) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            norm(&[x[0] - p[0] - t * d[0], x[1] - p[1] - t * d[1]])
+        }
+        CrackGeometry::Patch {
+            origin,
+            edge_a,
+            edge_b,
+        } => {
+            // Least-squares coordinates on the patch's plane, clamped to the patch.
+            let r: Vec<f64> = (0..3).map(|k| x[k] - origin[k]).collect();
+            let dot = |u: &[f64], v: &[f64]| u.iter().zip(v).map(|(a, b)| a * b).sum::<f64>();
+            let (aa, ab, bb) = (
+                dot(edge_a, edge_a),
+                dot(edge_a, edge_b),
+                dot(edge_b, edge_b),
+            );
+            let (ra, rb) = (dot(&r, edge_a), dot(&r, edge_b));
+            let det = aa * bb - ab * ab;
+            let (a, b) = if det > 0.0 {
+                (
+                    ((ra * bb - rb * ab) / det).clamp(0.0, 1.0),
+                    ((rb * aa - ra * ab) / det).clamp(0.0, 1.0),
+                )
+            } else {
+                (0.0, 0.0)
+            };
+            let diff: Vec<f64> = (0..3)
+                .map(|k| r[k] - a * edge_a[k] - b * edge_b[k])
+                .collect();
+            norm(&diff)
+        }
+    }
+}
+
 fn cross2(o: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 }

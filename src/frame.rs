@@ -9,6 +9,15 @@ pub struct NodeField {
     pub range: (f64, f64),
 }
 
+/// One per-node class field (a mask): class ids and the classes' names and colors, shown with
+/// an annotation context so the viewer names each class.
+#[derive(Debug, Clone)]
+pub struct ClassField {
+    pub name: &'static str,
+    pub ids: Vec<u16>,
+    pub classes: &'static [(u16, &'static str, [u8; 3])],
+}
+
 #[derive(Debug, Clone)]
 pub struct Frame {
     pub step: u64,
@@ -17,6 +26,10 @@ pub struct Frame {
     /// Current positions, `dim` values per node.
     pub positions: Vec<f64>,
     pub fields: Vec<NodeField>,
+    /// Per-node masks (scheme region, phase).
+    pub classes: Vec<ClassField>,
+    /// Events since the previous frame (e.g. nodes switched to the standard scheme).
+    pub events: Vec<String>,
     /// Scalar series: `(name, value)`, names are slash paths like `energy/kinetic`.
     pub scalars: Vec<(String, f64)>,
 }

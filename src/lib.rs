@@ -4,6 +4,7 @@
 //! `scheme` operators with `model` laws → `sim` (stepping) → `frame` snapshots → sinks
 //! (`record` for Rerun). The solver core knows nothing of Rerun or user interfaces.
 
+pub mod adapt;
 pub mod bench;
 pub mod family;
 pub mod frame;

@@ -427,6 +427,13 @@ fn print_summary(s: &RunSummary, frames_written: u64) {
         s.bond_evaluations_per_second(),
         100.0 * s.frame_seconds / s.wall_seconds.max(1e-12)
     );
+    let stages: Vec<String> = s
+        .stages
+        .iter()
+        .filter(|(_, t)| *t > 0.0)
+        .map(|(n, t)| format!("{n} {t:.2} s"))
+        .collect();
+    println!("stages: {}", stages.join(", "));
     if let Some(e) = s.relative_error {
         println!("relative l2 error (3.79): {e:.6e}");
     } else {

@@ -326,6 +326,39 @@ fn log_frame(
         };
         stream.log(path, &[points.as_ref(), &values as &dyn AsComponents])?;
     }
+    for class in &frame.classes {
+        let path = format!("nodes/{}", class.name);
+        let context =
+            rerun::AnnotationContext::new(class.classes.iter().map(|&(id, label, rgb)| {
+                (id, label, rerun::Rgba32::from_rgb(rgb[0], rgb[1], rgb[2]))
+            }));
+        stream.log_static(path.as_str(), &context)?;
+        let ids = class
+            .ids
+            .iter()
+            .map(|&c| rerun::components::ClassId::from(c));
+        if dim == 3 {
+            stream.log(
+                path,
+                &rerun::Points3D::new(positions.iter().copied())
+                    .with_class_ids(ids)
+                    .with_radii([radius]),
+            )?;
+        } else {
+            stream.log(
+                path,
+                &rerun::Points2D::new(positions.iter().map(|p| [p[0], p[1]]))
+                    .with_class_ids(ids)
+                    .with_radii([radius]),
+            )?;
+        }
+    }
+    for event in &frame.events {
+        stream.log(
+            "log/events",
+            &rerun::TextLog::new(event.as_str()).with_level(rerun::TextLogLevel::INFO),
+        )?;
+    }
     for (name, value) in &frame.scalars {
         stream.log(format!("metrics/{name}"), &rerun::Scalars::single(*value))?;
     }

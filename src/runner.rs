@@ -40,6 +40,8 @@ pub struct RunSummary {
     pub broken_bonds: u64,
     /// Relative ℓ² error (3.79) at the end, for scenes with a reference solution.
     pub relative_error: Option<f64>,
+    /// Wall time per stage of `step()`, in seconds.
+    pub stages: Vec<(&'static str, f64)>,
     pub last_frame: Option<Frame>,
 }
 
@@ -103,6 +105,12 @@ pub fn run(
         crack_angles: sim.crack_angles(),
         broken_bonds: sim.broken_bonds(),
         relative_error: sim.relative_error(),
+        stages: sim
+            .timers()
+            .named()
+            .iter()
+            .map(|(n, d)| (*n, d.as_secs_f64()))
+            .collect(),
         steps: sim.steps_done(),
         info,
         frames,

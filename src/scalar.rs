@@ -435,6 +435,8 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
                     range: (-error_range, error_range),
                 },
             ],
+            classes: Vec::new(),
+            events: Vec::new(),
             scalars,
         }
     }

@@ -3,8 +3,9 @@
 
 use std::time::{Duration as WallDuration, Instant};
 
+use crate::adapt::hybrid::{self, Hybrid};
 use crate::family::{self, Families};
-use crate::frame::{Frame, NodeField};
+use crate::frame::{ClassField, Frame, NodeField};
 use crate::grid::Lattice;
 use crate::integrate::{self, stability, verlet};
 use crate::metrics;
@@ -82,12 +83,15 @@ pub struct StageTimers {
     pub forces: WallDuration,
     pub constraints: WallDuration,
     pub kick: WallDuration,
+    /// The hybrid scheme's switching check (3.80).
+    pub switching: WallDuration,
 }
 
 impl StageTimers {
-    pub fn named(&self) -> [(&'static str, WallDuration); 4] {
+    pub fn named(&self) -> [(&'static str, WallDuration); 5] {
         [
             ("kick_drift", self.kick_drift),
+            ("switching", self.switching),
             ("forces", self.forces),
             ("constraints", self.constraints),
             ("kick", self.kick),
@@ -167,6 +171,8 @@ fn standard_view<'a, const D: usize>(
 
 /// Power iterations for the stable-step estimate, and the margin on the eigenvalue found.
 const POWER_ITERATIONS: usize = 60;
+/// Power iterations for the (non-symmetric) hybrid operator's spectral radius.
+const HYBRID_ITERATIONS: usize = 200;
 const SPECTRAL_MARGIN: f64 = 1.02;
 
 /// A prescribed node component: node, axis, value.
@@ -199,6 +205,10 @@ pub struct Simulation<const D: usize> {
     velocity_scale: f64,
     uniform_volume: Option<f64>,
     last_frame: (u64, Instant),
+    /// Hybrid schemes: the Ω_s/Ω_w mask, the WLS blocks and the switching state.
+    pub hybrid: Option<Hybrid<D>>,
+    /// Bonds found broken with an Ω_w end (the hybrid invariant; 0 when it holds).
+    pub hybrid_violations: u64,
 }
 
 impl<const D: usize> Simulation<D> {
@@ -269,7 +279,41 @@ impl<const D: usize> Simulation<D> {
             });
         // The Rayleigh quotient approaches λ_max from below: keep a margin, and never go
         // below the guaranteed (3.8) bound.
-        let stable_dt = (stability::verlet_limit(lambda_max * SPECTRAL_MARGIN)).max(gershgorin_dt);
+        let mut stable_dt =
+            (stability::verlet_limit(lambda_max * SPECTRAL_MARGIN)).max(gershgorin_dt);
+        let hybrid = match scene.hybrid {
+            None => None,
+            Some(spec) => {
+                let mask = hybrid::initial_mask(
+                    &lattice.positions,
+                    &scene.solid,
+                    &scene.precracks,
+                    spec.band,
+                    scene.spacing,
+                );
+                let h = Hybrid::new(
+                    spec,
+                    mask,
+                    &lattice.positions,
+                    &families,
+                    &law,
+                    scene.scheme.collocation_factor,
+                )
+                .map_err(|e| error("hybrid.collocation_factor", e.to_string()))?;
+                // The WLS blocks are not symmetric and their stencil is tighter than the
+                // family's: the hybrid operator's spectral radius (power iteration) bounds Δt
+                // too, and (3.8) does not cover it.
+                let radius =
+                    stability::spectral_radius(lattice.len() * D, HYBRID_ITERATIONS, |v, out| {
+                        let u = v.as_chunks::<D>().0;
+                        let out = out.as_chunks_mut::<D>().0;
+                        scheme.apply_linearized(&intact, m.density, u, out);
+                        h.apply_linearized(u, m.density, out);
+                    });
+                stable_dt = stable_dt.min(stability::verlet_limit(radius * SPECTRAL_MARGIN));
+                Some(h)
+            }
+        };
         let dt = match scene.time.step {
             StepSize::Absolute(dt) => {
                 if dt > stable_dt && !scene.time.allow_unstable {
@@ -327,7 +371,10 @@ impl<const D: usize> Simulation<D> {
             velocity_scale: 1.0,
             uniform_volume,
             last_frame: (0, Instant::now()),
+            hybrid,
+            hybrid_violations: 0,
         };
+
         sim.apply_initial_velocity();
         sim.collect_boundary_layers()
             .map_err(|(f, msg)| error(&f, msg))?;
@@ -467,7 +514,12 @@ impl<const D: usize> Simulation<D> {
             &self.quadrature,
             self.uniform_volume,
         );
-        self.broken += scheme.forces(&self.positions, &mut self.intact, &mut self.terms);
+        let mask = self.hybrid.as_ref().map(|h| h.mask());
+        self.broken +=
+            scheme.forces_masked(&self.positions, &mut self.intact, &mut self.terms, mask);
+        if let Some(h) = self.hybrid.as_mut() {
+            h.wls_forces(&self.lattice.positions, &self.positions, &mut self.terms);
+        }
         let inv_rho = 1.0 / self.density();
         let body = &self.body_force;
         for (i, (a, t)) in self.accelerations.iter_mut().zip(&self.terms).enumerate() {
@@ -544,6 +596,65 @@ impl<const D: usize> Simulation<D> {
         self.update_accelerations();
     }
 
+    /// The hybrid invariant: bonds broken with an Ω_w end. Damage that reached Ω_w (possible
+    /// only with a check policy other than every bond every step) switches those nodes at once.
+    pub fn enforce_hybrid_invariant(&mut self) -> usize {
+        let (step, time) = (self.step, self.step as f64 * self.dt);
+        match self.hybrid.as_mut() {
+            Some(h) => {
+                let found = h.enforce(step, time, &self.intact, &self.families);
+                self.hybrid_violations += found as u64;
+                found
+            }
+            None => 0,
+        }
+    }
+
+    /// The scheme mask, Ω_s fraction, switching events and invariant count of a frame.
+    fn hybrid_frame(&mut self, scalars: &mut Vec<(String, f64)>) -> (Vec<ClassField>, Vec<String>) {
+        if self.hybrid.is_none() {
+            return (Vec::new(), Vec::new());
+        }
+        self.enforce_hybrid_invariant();
+        let violations = self.hybrid_violations as f64;
+        let Some(h) = self.hybrid.as_mut() else {
+            return (Vec::new(), Vec::new());
+        };
+        let events: Vec<String> = h
+            .take_events()
+            .iter()
+            .map(|e| {
+                if e.forced {
+                    format!(
+                        "t = {:.4e} s (step {}): damage reached Ω_w; {} nodes switched to the standard scheme",
+                        e.time, e.step, e.nodes
+                    )
+                } else {
+                    format!(
+                        "t = {:.4e} s (step {}): {} nodes switched to the standard scheme",
+                        e.time, e.step, e.nodes
+                    )
+                }
+            })
+            .collect();
+        scalars.push(("hybrid/omega_s_fraction".into(), h.standard_fraction()));
+        scalars.push(("hybrid/chi".into(), h.spec.chi));
+        scalars.push(("hybrid/violations".into(), violations));
+        scalars.push(("hybrid/checked_bonds".into(), h.checked_bonds as f64));
+        let ids = h.mask().iter().map(|&m| u16::from(m)).collect();
+        (
+            vec![ClassField {
+                name: "scheme",
+                ids,
+                classes: &[
+                    (hybrid::STANDARD as u16, "standard", [230, 85, 13]),
+                    (hybrid::WLS as u16, "WLS", [49, 130, 189]),
+                ],
+            }],
+            events,
+        )
+    }
+
     fn crack_angles_for(&self, damage: &[f64]) -> Vec<(String, Option<f64>)> {
         self.scene
             .crack_angles
@@ -571,6 +682,19 @@ impl<const D: usize> Stepper for Simulation<D> {
         self.hold_velocities();
         verlet::drift(&mut self.positions, &self.velocities, dt);
         let t1 = Instant::now();
+        // Switch before the force pass evaluates damage on u^{n+1} (§5 step 4–5).
+        let time = (self.step + 1) as f64 * dt;
+        if let Some(h) = self.hybrid.as_mut() {
+            h.check(
+                self.step + 1,
+                time,
+                &self.positions,
+                &self.families,
+                self.law.critical_stretch,
+            );
+        }
+        let t_switch = Instant::now();
+        self.timers.switching += t_switch - t1;
         self.update_accelerations();
         let t2 = Instant::now();
         let max_speed2 =
@@ -579,7 +703,7 @@ impl<const D: usize> Stepper for Simulation<D> {
         self.apply_constraints();
         let t4 = Instant::now();
         self.timers.kick_drift += t1 - t0;
-        self.timers.forces += t2 - t1;
+        self.timers.forces += t2 - t_switch;
         self.timers.kick += t3 - t2;
         self.timers.constraints += t4 - t3;
         self.step += 1;
@@ -633,6 +757,7 @@ impl<const D: usize> Stepper for Simulation<D> {
         for (k, p) in momentum.iter().enumerate() {
             scalars.push((format!("momentum/{}", ["x", "y", "z"][k]), *p));
         }
+        let (classes, events) = self.hybrid_frame(&mut scalars);
         for (name, angle) in self.crack_angles_for(&damage) {
             if let Some(a) = angle {
                 scalars.push((format!("crack_angle_deg/{name}"), a));
@@ -655,6 +780,8 @@ impl<const D: usize> Stepper for Simulation<D> {
                     range: (0.0, self.velocity_scale),
                 },
             ],
+            classes,
+            events,
             scalars,
         }
     }

@@ -47,7 +47,12 @@ fn column(rows: &[SweepRow], scheme: SchemeKind) -> Vec<f64> {
         .collect()
 }
 
-const ALL: [SchemeKind; 4] = SchemeKind::ALL;
+const ALL: [SchemeKind; 4] = [
+    SchemeKind::Standard,
+    SchemeKind::Wls2,
+    SchemeKind::Wls4,
+    SchemeKind::Wls6,
+];
 /// δ = 6 and m = 6, 12, 24, 33 (the papers' finest standard grid: 67 family nodes).
 const M_SPACINGS: [f64; 4] = [1.0, 0.5, 0.25, 6.0 / 33.0];
 

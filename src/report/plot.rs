@@ -32,6 +32,8 @@ fn series_color(kind: SchemeKind) -> RGBColor {
         SchemeKind::Wls2 => RGBColor(255, 127, 14),
         SchemeKind::Wls4 => RGBColor(44, 160, 44),
         SchemeKind::Wls6 => RGBColor(214, 39, 40),
+        SchemeKind::HybridFixed => RGBColor(148, 103, 189),
+        SchemeKind::HybridAdaptive => RGBColor(140, 86, 75),
     }
 }
 

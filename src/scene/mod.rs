@@ -13,7 +13,7 @@ use std::path::Path;
 pub use error::SceneError;
 pub use geometry::Solid;
 pub use reference::Reference;
-pub use schema::{FamilyRadius, Influence, Physics, Plane, Preset, SchemeKind};
+pub use schema::{CheckSet, FamilyRadius, Influence, Physics, Plane, Preset, SchemeKind};
 
 use error::{ErrorContext, line_of};
 
@@ -43,6 +43,8 @@ pub struct Scene {
     /// Diffusion kernel (diffusion scenes).
     pub diffusion: Option<DiffusionSpec>,
     pub reference: Option<Reference>,
+    /// Hybrid schemes only.
+    pub hybrid: Option<HybridSpec>,
     pub precracks: Vec<CrackGeometry>,
     pub boundary: Vec<BoundarySpec>,
     pub initial_velocity: Vec<InitialVelocity>,
@@ -67,6 +69,16 @@ pub struct DiffusionSpec {
     pub diffusivity: f64,
     pub exponent: f64,
     pub influence: Influence,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HybridSpec {
+    pub adaptive: bool,
+    /// Initial Ω_s band width (m).
+    pub band: f64,
+    pub chi: f64,
+    pub check: CheckSet,
+    pub check_every: u64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]

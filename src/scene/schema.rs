@@ -34,6 +34,9 @@ pub struct Preset {
     pub output: Output,
     #[serde(default)]
     pub metrics: MetricsSpec,
+    /// Hybrid schemes: the initial Ω_s band, the switching margin χ and the check policy.
+    #[serde(default)]
+    pub hybrid: HybridTable,
     /// A manufactured solution: gives the body force or source, the values held in
     /// `hold_reference` layers, and the error norm (3.79) reported in frames.
     pub reference: Option<ReferenceSpec>,
@@ -66,6 +69,58 @@ pub struct Discretization {
     /// papers' choice for the basis order and dimension (collocation sets of 5/11/13 in 1D,
     /// 29/49 in 2D, 123 in 3D).
     pub collocation_factor: Option<usize>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HybridTable {
+    /// Width of the initial Ω_s band around boundaries and pre-cracks ("1.2 horizon", "3 mm").
+    #[serde(default = "default_band")]
+    pub band: Measure,
+    /// Switching margin χ of (3.80): a bond is critical when its stretch reaches χ·s0.
+    #[serde(default = "default_chi")]
+    pub chi: f64,
+    /// Which Ω_w bonds are checked: "all" (every family bond of every Ω_w node) or "near"
+    /// (Ω_w nodes within 2δ of Ω_s).
+    #[serde(default)]
+    pub check: CheckSet,
+    /// Check every this many steps.
+    #[serde(default = "default_every")]
+    pub check_every: u64,
+    /// WLS auxiliary-grid factor k_aux in Ω_w (default: 29 collocation nodes in 2D, 123 in 3D).
+    pub collocation_factor: Option<usize>,
+}
+
+impl Default for HybridTable {
+    fn default() -> Self {
+        HybridTable {
+            band: default_band(),
+            chi: default_chi(),
+            check: CheckSet::default(),
+            check_every: default_every(),
+            collocation_factor: None,
+        }
+    }
+}
+
+fn default_band() -> Measure {
+    Measure::Relative(1.2, super::units::Relative::Horizon)
+}
+
+fn default_chi() -> f64 {
+    0.95
+}
+
+fn default_every() -> u64 {
+    1
+}
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CheckSet {
+    #[default]
+    All,
+    Near,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
@@ -163,14 +218,21 @@ pub enum SchemeKind {
     Wls4,
     #[serde(rename = "wls-6")]
     Wls6,
+    /// Ω_s (standard, nonlinear) in a fixed band around boundaries and pre-cracks, Ω_w (WLS-2,
+    /// linearized) elsewhere (§5).
+    HybridFixed,
+    /// As `hybrid-fixed`, and Ω_s grows where bonds reach χ·s0 (3.80).
+    HybridAdaptive,
 }
 
 impl SchemeKind {
-    pub const ALL: [SchemeKind; 4] = [
+    pub const ALL: [SchemeKind; 6] = [
         SchemeKind::Standard,
         SchemeKind::Wls2,
         SchemeKind::Wls4,
         SchemeKind::Wls6,
+        SchemeKind::HybridFixed,
+        SchemeKind::HybridAdaptive,
     ];
 
     pub fn name(self) -> &'static str {
@@ -179,7 +241,13 @@ impl SchemeKind {
             SchemeKind::Wls2 => "wls-2",
             SchemeKind::Wls4 => "wls-4",
             SchemeKind::Wls6 => "wls-6",
+            SchemeKind::HybridFixed => "hybrid-fixed",
+            SchemeKind::HybridAdaptive => "hybrid-adaptive",
         }
+    }
+
+    pub fn is_hybrid(self) -> bool {
+        matches!(self, SchemeKind::HybridFixed | SchemeKind::HybridAdaptive)
     }
 
     /// The WLS basis order k, None for the standard scheme.
@@ -189,6 +257,7 @@ impl SchemeKind {
             SchemeKind::Wls2 => Some(2),
             SchemeKind::Wls4 => Some(4),
             SchemeKind::Wls6 => Some(6),
+            SchemeKind::HybridFixed | SchemeKind::HybridAdaptive => None,
         }
     }
 }

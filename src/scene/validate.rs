@@ -119,11 +119,19 @@ pub(super) fn validate(
     if physics != Physics::Dynamics && !p.precracks.is_empty() {
         return Err(ctx.error("precracks", "pre-cracks need physics = \"dynamics\""));
     }
-    if physics == Physics::Dynamics && scheme.kind != SchemeKind::Standard {
+    let hybrid = hybrid(p, ctx, scheme.kind, spacing, horizon)?;
+    if physics != Physics::Dynamics && scheme.kind.is_hybrid() {
+        return Err(ctx.error(
+            "discretization.scheme",
+            format!("\"{}\" is available for dynamics", scheme.kind.name()),
+        ));
+    }
+    if physics == Physics::Dynamics && scheme.kind.wls_order().is_some() {
         return Err(ctx.error(
             "discretization.scheme",
             format!(
-                "\"{}\" is available for physics = \"static\" and \"diffusion\"; dynamics uses \"standard\"",
+                "\"{}\" is available for physics = \"static\" and \"diffusion\"; dynamics uses \
+                 \"standard\", \"hybrid-fixed\" or \"hybrid-adaptive\"",
                 scheme.kind.name()
             ),
         ));
@@ -218,6 +226,7 @@ pub(super) fn validate(
         scheme,
         reference,
         diffusion,
+        hybrid,
         seed: d.seed,
         family_radius: d.family_radius,
         volume_correction: d.volume_correction,
@@ -317,11 +326,21 @@ fn diffusion(p: &Preset, ctx: &ErrorContext) -> Result<DiffusionSpec, SceneError
 fn scheme(p: &Preset, ctx: &ErrorContext, dim: usize) -> Result<SchemeSpec, SceneError> {
     let d = &p.discretization;
     let kind = d.scheme;
-    let Some(order) = kind.wls_order() else {
-        return Ok(SchemeSpec {
-            kind,
-            collocation_factor: 0,
-        });
+    let order = match kind.wls_order() {
+        Some(order) => order,
+        // Ω_w of a hybrid runs WLS-2: 29 collocation nodes in 2D, 123 in 3D (δ/3).
+        None if kind.is_hybrid() => {
+            return Ok(SchemeSpec {
+                kind,
+                collocation_factor: p.hybrid.collocation_factor.unwrap_or(3),
+            });
+        }
+        None => {
+            return Ok(SchemeSpec {
+                kind,
+                collocation_factor: 0,
+            });
+        }
     };
     let default = match (dim, order) {
         (1, 2) => Some(2),
@@ -356,6 +375,64 @@ fn scheme(p: &Preset, ctx: &ErrorContext, dim: usize) -> Result<SchemeSpec, Scen
         kind,
         collocation_factor,
     })
+}
+
+fn hybrid(
+    p: &Preset,
+    ctx: &ErrorContext,
+    kind: SchemeKind,
+    spacing: f64,
+    horizon: f64,
+) -> Result<Option<HybridSpec>, SceneError> {
+    if !kind.is_hybrid() {
+        return Ok(None);
+    }
+    let h = &p.hybrid;
+    let band = match h.band {
+        Measure::Si(b) => b,
+        Measure::Relative(f, Relative::Horizon) => f * horizon,
+        Measure::Relative(f, Relative::Spacing) => f * spacing,
+        Measure::Relative(_, r) => {
+            return Err(ctx.error(
+                "hybrid.band",
+                format!(
+                    "`{}` is not a length: give \"1.2 horizon\", \"5 dx\" or \"3 mm\"",
+                    r.unit()
+                ),
+            ));
+        }
+    };
+    if band.is_nan() || band < horizon * (1.0 - 1e-9) || !band.is_finite() {
+        return Err(ctx.error(
+            "hybrid.band",
+            format!(
+                "{band:.4e} m is narrower than the horizon {horizon:.4e} m: nodes whose \
+                 neighbourhood is cut by a boundary or pre-crack must use the standard scheme \
+                 (give at least \"1 horizon\")"
+            ),
+        ));
+    }
+    if !(h.chi > 0.0 && h.chi <= 1.0) {
+        return Err(ctx.error("hybrid.chi", format!("χ must be in (0, 1], got {}", h.chi)));
+    }
+    if h.check_every == 0 {
+        return Err(ctx.error("hybrid.check_every", "must be ≥ 1 (steps between checks)"));
+    }
+    if let Some(k) = h.collocation_factor
+        && !(1..=64).contains(&k)
+    {
+        return Err(ctx.error(
+            "hybrid.collocation_factor",
+            format!("k_aux must be in 1..=64, got {k}"),
+        ));
+    }
+    Ok(Some(HybridSpec {
+        adaptive: kind == SchemeKind::HybridAdaptive,
+        band,
+        chi: h.chi,
+        check: h.check,
+        check_every: h.check_every,
+    }))
 }
 
 /// Boxes grow by the thickness of their `outside` layers.

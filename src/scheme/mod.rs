@@ -65,47 +65,79 @@ pub type Row<T> = (Vec<u32>, Vec<T>);
 
 /// A linear operator on a vector node field (D components per node), as sparse rows of D × D
 /// blocks: out_i = Σ_j K_ij values_j. The WLS elasticity operator K_ij = L̄ Q̄_i (§3.5).
+/// Rows whose collocation geometry is the same (a uniform lattice away from its boundaries)
+/// share one block set ("stencil"), so a row costs 4 bytes per entry to stream, not 36.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VectorOperator<const D: usize> {
     pub rows: Vec<u32>,
     pub offsets: Vec<usize>,
     pub columns: Vec<u32>,
-    /// blocks[e][k][l]: force component k from displacement component l of column e.
+    /// Per row, the index of its stencil.
+    pub stencil_of: Vec<u32>,
+    /// Stencil s's blocks are blocks[stencil_offsets[s]..stencil_offsets[s + 1]], in the order
+    /// of the row's columns; blocks[e][k][l]: force component k from displacement component l.
+    pub stencil_offsets: Vec<usize>,
     pub blocks: Vec<[[f64; D]; D]>,
 }
 
 impl<const D: usize> VectorOperator<D> {
-    pub fn from_rows(rows: &[u32], per_row: Vec<Row<[[f64; D]; D]>>) -> Self {
+    /// From per-row columns and a stencil index, and the stencils' blocks.
+    pub fn new(
+        rows: &[u32],
+        columns_per_row: Vec<(Vec<u32>, u32)>,
+        stencils: Vec<Vec<[[f64; D]; D]>>,
+    ) -> Self {
         let mut offsets = Vec::with_capacity(rows.len() + 1);
         offsets.push(0);
-        let (mut columns, mut blocks) = (Vec::new(), Vec::new());
-        for (set, b) in per_row {
+        let mut columns = Vec::new();
+        let mut stencil_of = Vec::with_capacity(rows.len());
+        for (set, s) in columns_per_row {
             columns.extend(set);
-            blocks.extend(b);
+            stencil_of.push(s);
             offsets.push(columns.len());
+        }
+        let mut stencil_offsets = vec![0];
+        let mut blocks = Vec::new();
+        for b in stencils {
+            blocks.extend(b);
+            stencil_offsets.push(blocks.len());
         }
         VectorOperator {
             rows: rows.to_vec(),
             offsets,
             columns,
+            stencil_of,
+            stencil_offsets,
             blocks,
         }
     }
 
-    /// out[r] = Σ_j K_rj values[j], one entry per row, in parallel; no allocation.
-    pub fn apply_rows(&self, values: &[[f64; D]], out: &mut [[f64; D]]) {
-        out.par_iter_mut().enumerate().for_each(|(r, o)| {
-            let mut acc = [0.0; D];
-            for e in self.offsets[r]..self.offsets[r + 1] {
-                let u = &values[self.columns[e] as usize];
-                let block = &self.blocks[e];
-                for k in 0..D {
-                    for l in 0..D {
-                        acc[k] += block[k][l] * u[l];
-                    }
+    /// Number of distinct stencils (block sets).
+    pub fn stencil_count(&self) -> usize {
+        self.stencil_offsets.len() - 1
+    }
+
+    /// Σ_j K_rj values[j] for row r.
+    #[inline]
+    pub fn apply_row(&self, r: usize, values: &[[f64; D]]) -> [f64; D] {
+        let mut acc = [0.0; D];
+        let columns = &self.columns[self.offsets[r]..self.offsets[r + 1]];
+        let first = self.stencil_offsets[self.stencil_of[r] as usize];
+        for (&j, block) in columns.iter().zip(&self.blocks[first..]) {
+            let u = &values[j as usize];
+            for k in 0..D {
+                for l in 0..D {
+                    acc[k] += block[k][l] * u[l];
                 }
             }
-            *o = acc;
-        });
+        }
+        acc
+    }
+
+    /// out[r] = Σ_j K_rj values[j], one entry per row, in parallel; no allocation.
+    pub fn apply_rows(&self, values: &[[f64; D]], out: &mut [[f64; D]]) {
+        out.par_iter_mut()
+            .enumerate()
+            .for_each(|(r, o)| *o = self.apply_row(r, values));
     }
 }

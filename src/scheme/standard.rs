@@ -107,6 +107,18 @@ impl<const D: usize> Standard<'_, D> {
         intact: &mut [u8],
         terms: &mut [NodeTerms<D>],
     ) -> u64 {
+        self.forces_masked(positions, intact, terms, None)
+    }
+
+    /// As `forces`, skipping the rows whose `skip` flag is non-zero (the hybrid scheme's Ω_w
+    /// nodes, §5): their terms are left as they are and their bonds are never evaluated.
+    pub fn forces_masked(
+        &self,
+        positions: &[[f64; D]],
+        intact: &mut [u8],
+        terms: &mut [NodeTerms<D>],
+        skip: Option<&[u8]>,
+    ) -> u64 {
         let (families, law, quadrature) = (self.families, self.law, self.quadrature);
         assert_eq!(positions.len(), families.node_count());
         assert_eq!(intact.len(), families.bond_count());
@@ -124,6 +136,7 @@ impl<const D: usize> Standard<'_, D> {
             quadrature,
             first: 0,
             s0: law.critical_stretch,
+            skip,
         };
         // One monomorphized loop per (influence, β, volume) combination: no branches inside.
         macro_rules! with_volume {
@@ -317,6 +330,7 @@ struct Rows<'a, const D: usize> {
     quadrature: &'a Quadrature,
     first: usize,
     s0: f64,
+    skip: Option<&'a [u8]>,
 }
 
 #[inline(always)]
@@ -332,6 +346,9 @@ fn rows_portable<const D: usize>(
     let mut broken = 0u64;
     for (row, t_i) in terms.iter_mut().enumerate() {
         let i = rows.first + row;
+        if rows.skip.is_some_and(|mask| mask[i] != 0) {
+            continue;
+        }
         let range = families.range(i);
         let (acc, w, newly_broken, lost) = pmb_row(
             rows.positions[i],
@@ -571,6 +588,7 @@ mod tests {
             quadrature: &quadrature,
             first: 0,
             s0: law.critical_stretch,
+            skip: None,
         };
         let weight = |l: f64| quadrature.beta(l);
         let volume = |_j: usize| 1.0;

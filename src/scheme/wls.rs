@@ -350,7 +350,8 @@ pub fn diffusion_operator<const D: usize>(
 }
 
 /// Per-node D × D blocks K_ij = L̄ Q̄_i of a WLS elasticity operator (§3.5, seed-004 §2.7):
-/// `l[k][l][α]` as returned by `bond_l` or `lps_shear_l`.
+/// `l[k][l][α]` as returned by `bond_l` or `lps_shear_l`. Rows whose collocation sets have the
+/// same geometry (relative offsets equal to 10⁻⁹ δ) are fitted once and share their blocks.
 pub fn elasticity_operator<const D: usize>(
     rows: &[u32],
     positions: &[[f64; D]],
@@ -360,6 +361,8 @@ pub fn elasticity_operator<const D: usize>(
     horizon: f64,
     k_aux: usize,
 ) -> Result<VectorOperator<D>, FitError> {
+    use rayon::prelude::*;
+    use std::collections::HashMap;
     let scaled: Vec<Vec<nalgebra::RowDVector<f64>>> = l
         .iter()
         .map(|row| {
@@ -368,16 +371,51 @@ pub fn elasticity_operator<const D: usize>(
                 .collect()
         })
         .collect();
-    let per_row = fitted_rows(rows, positions, families, basis, horizon, k_aux, |q| {
-        let weights: Vec<Vec<nalgebra::RowDVector<f64>>> = scaled
-            .iter()
-            .map(|row| row.iter().map(|lk| lk * q).collect())
-            .collect();
-        (0..q.ncols())
-            .map(|j| std::array::from_fn(|k| std::array::from_fn(|c| weights[k][c][j])))
+    let sets: Vec<Vec<u32>> = rows
+        .par_iter()
+        .map(|&i| collocation_set(i as usize, positions, families, horizon, k_aux))
+        .collect();
+    let key = |i: u32, set: &[u32]| -> Vec<i64> {
+        set.iter()
+            .flat_map(|&j| {
+                (0..D).map(move |a| {
+                    ((positions[j as usize][a] - positions[i as usize][a]) / horizon * 1e9).round()
+                        as i64
+                })
+            })
             .collect()
-    })?;
-    Ok(VectorOperator::from_rows(rows, per_row))
+    };
+    let mut first_row_of: HashMap<Vec<i64>, u32> = HashMap::new();
+    let mut unique: Vec<usize> = Vec::new();
+    let stencil_of: Vec<u32> = rows
+        .iter()
+        .zip(&sets)
+        .enumerate()
+        .map(|(r, (&i, set))| {
+            *first_row_of.entry(key(i, set)).or_insert_with(|| {
+                unique.push(r);
+                (unique.len() - 1) as u32
+            })
+        })
+        .collect();
+    let stencils: Vec<Vec<[[f64; D]; D]>> = unique
+        .par_iter()
+        .map(|&r| {
+            let q = fit_matrix(rows[r] as usize, &sets[r], positions, basis, horizon)?;
+            let weights: Vec<Vec<nalgebra::RowDVector<f64>>> = scaled
+                .iter()
+                .map(|row| row.iter().map(|lk| lk * &q).collect())
+                .collect();
+            Ok((0..q.ncols())
+                .map(|j| std::array::from_fn(|k| std::array::from_fn(|c| weights[k][c][j])))
+                .collect())
+        })
+        .collect::<Result<_, FitError>>()?;
+    Ok(VectorOperator::new(
+        rows,
+        sets.into_iter().zip(stencil_of).collect(),
+        stencils,
+    ))
 }
 
 /// Weighted volume m̄ = ∫_H ω ‖ξ‖² dV (LPS).

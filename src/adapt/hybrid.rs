@@ -1,0 +1,348 @@
+//! The hybrid configuration (thesis §3.3, seed-003 §5, seed-004 §4): one grid, a per-node
+//! mask. Ω_s nodes run the standard scheme (nonlinear PMB with failure) over their whole
+//! family; Ω_w nodes run WLS-2 (linearized, precomputed blocks K_ij = L̄ Q̄_i) over their
+//! collocation nodes, wherever those lie. No ghost layer, no interpolation.
+//!
+//! Ω_s starts as a band around boundaries and pre-cracks. In the adaptive configuration it
+//! only grows: a bond is critical when its stretch reaches χ·s0 — (3.80) without the upper
+//! bound s ≤ s0, per the errata note (a bond that jumps past s0 in one step is still caught) —
+//! and then every node of H_i ∪ H_j switches to the standard scheme. The check runs on the
+//! positions u^{n+1} right after the drift, before the force pass breaks any bond: the thesis's
+//! "end of step n, before the critical zone is evaluated for damage".
+
+use rayon::prelude::*;
+
+use crate::family::{self, Families};
+use crate::model::pmb::PmbLaw;
+use crate::scene::{CheckSet, CrackGeometry, HybridSpec, Solid};
+use crate::scheme::VectorOperator;
+use crate::scheme::standard::NodeTerms;
+use crate::scheme::wls::{self, Basis, FitError};
+
+/// Mask values.
+pub const STANDARD: u8 = 0;
+pub const WLS: u8 = 1;
+
+/// A switching event: at `step` (time `time`), `nodes` nodes moved to Ω_s.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SwitchEvent {
+    pub step: u64,
+    pub time: f64,
+    pub nodes: usize,
+    /// The switch was forced by damage found in Ω_w (a check policy that missed it).
+    pub forced: bool,
+}
+
+pub struct Hybrid<const D: usize> {
+    pub spec: HybridSpec,
+    /// 1 for Ω_w (WLS), 0 for Ω_s (standard), per node.
+    mask: Vec<u8>,
+    /// Rows: the initial Ω_w nodes; a row is skipped once its node switched.
+    wls: VectorOperator<D>,
+    wls_force: Vec<[f64; D]>,
+    displacement: Vec<[f64; D]>,
+    /// Ω_w nodes whose bonds the switching check visits, and their bond count.
+    check_nodes: Vec<u32>,
+    check_bonds: u64,
+    standard_nodes: usize,
+    initial_standard: usize,
+    events: Vec<SwitchEvent>,
+    /// Bond evaluations spent in switching checks so far.
+    pub checked_bonds: u64,
+}
+
+/// Ω_s of the initial configuration: nodes within `band` of the body's boundary (sampled on
+/// rays at 1/4 … 1 of the band in 2·D axis and diagonal directions) or of a pre-crack.
+pub fn initial_mask<const D: usize>(
+    positions: &[[f64; D]],
+    solid: &Solid,
+    precracks: &[CrackGeometry],
+    band: f64,
+    spacing: f64,
+) -> Vec<u8> {
+    let directions: Vec<[f64; D]> = (1..3usize.pow(D as u32))
+        .filter_map(|code| {
+            let mut d = [0.0; D];
+            let mut c = code;
+            for v in d.iter_mut() {
+                *v = (c % 3) as f64 - 1.0;
+                c /= 3;
+            }
+            let n = d.iter().map(|v| v * v).sum::<f64>().sqrt();
+            (n > 0.0).then(|| d.map(|v| v / n))
+        })
+        .collect();
+    let eps = 1e-9 * spacing;
+    positions
+        .par_iter()
+        .map(|x| {
+            let near_crack = precracks
+                .iter()
+                .any(|c| family::distance_to_crack(c, x) < band);
+            let near_boundary = directions.iter().any(|d| {
+                [0.25, 0.5, 0.75, 1.0].iter().any(|f| {
+                    let p: Vec<f64> = (0..D).map(|k| x[k] + f * band * d[k]).collect();
+                    !solid.contains(&p, eps)
+                })
+            });
+            if near_crack || near_boundary {
+                STANDARD
+            } else {
+                WLS
+            }
+        })
+        .collect()
+}
+
+impl<const D: usize> Hybrid<D> {
+    /// Builds the mask and the WLS-2 blocks of the Ω_w nodes (k_aux: auxiliary grid δ/k_aux).
+    pub fn new(
+        spec: HybridSpec,
+        mask: Vec<u8>,
+        reference: &[[f64; D]],
+        families: &Families,
+        law: &PmbLaw,
+        k_aux: usize,
+    ) -> Result<Self, FitError> {
+        let rows: Vec<u32> = (0..mask.len() as u32)
+            .filter(|&i| mask[i as usize] == WLS)
+            .collect();
+        let basis = Basis::new(D, 2);
+        // (3.54)–(3.56): the linearized bond-based operator over the full ball.
+        let l = wls::bond_l(&basis, law.micromodulus, law.horizon, law.influence);
+        let wls =
+            wls::elasticity_operator(&rows, reference, families, &basis, &l, law.horizon, k_aux)?;
+        let standard_nodes = mask.len() - rows.len();
+        let mut hybrid = Hybrid {
+            spec,
+            wls_force: vec![[0.0; D]; rows.len()],
+            displacement: vec![[0.0; D]; mask.len()],
+            mask,
+            wls,
+            check_nodes: Vec::new(),
+            check_bonds: 0,
+            standard_nodes,
+            initial_standard: standard_nodes,
+            events: Vec::new(),
+            checked_bonds: 0,
+        };
+        hybrid.rebuild_check_set(families);
+        Ok(hybrid)
+    }
+
+    pub fn mask(&self) -> &[u8] {
+        &self.mask
+    }
+
+    /// Fraction of nodes in Ω_s.
+    pub fn standard_fraction(&self) -> f64 {
+        self.standard_nodes as f64 / self.mask.len().max(1) as f64
+    }
+
+    pub fn initial_standard_fraction(&self) -> f64 {
+        self.initial_standard as f64 / self.mask.len().max(1) as f64
+    }
+
+    /// Mean collocation nodes per Ω_w node.
+    pub fn collocation_size(&self) -> f64 {
+        self.wls.columns.len() as f64 / self.wls.rows.len().max(1) as f64
+    }
+
+    /// Changes χ in place (live control).
+    pub fn set_chi(&mut self, chi: f64) -> Result<(), String> {
+        if chi > 0.0 && chi <= 1.0 {
+            self.spec.chi = chi;
+            Ok(())
+        } else {
+            Err(format!("χ must be in (0, 1], got {chi}"))
+        }
+    }
+
+    /// Switching events since the last call.
+    pub fn take_events(&mut self) -> Vec<SwitchEvent> {
+        std::mem::take(&mut self.events)
+    }
+
+    fn rebuild_check_set(&mut self, families: &Families) {
+        let mask = &self.mask;
+        self.check_nodes = match self.spec.check {
+            CheckSet::All => (0..mask.len() as u32)
+                .filter(|&i| mask[i as usize] == WLS)
+                .collect(),
+            CheckSet::Near => {
+                // Ω_w nodes with an Ω_s node within one family hop, then within two.
+                let touches = |i: usize, flag: &[bool]| {
+                    families
+                        .range(i)
+                        .any(|b| flag[families.neighbors[b] as usize])
+                };
+                let standard: Vec<bool> = mask.iter().map(|&m| m == STANDARD).collect();
+                let ring1: Vec<bool> = (0..mask.len())
+                    .into_par_iter()
+                    .map(|i| mask[i] == WLS && touches(i, &standard))
+                    .collect();
+                let near: Vec<bool> = (0..mask.len())
+                    .into_par_iter()
+                    .map(|i| mask[i] == WLS && (ring1[i] || touches(i, &ring1)))
+                    .collect();
+                (0..mask.len() as u32)
+                    .filter(|&i| near[i as usize])
+                    .collect()
+            }
+        };
+        self.check_bonds = self
+            .check_nodes
+            .iter()
+            .map(|&i| families.range(i as usize).len() as u64)
+            .sum();
+    }
+
+    /// Moves every node of H_i ∪ H_j of each listed bond end to Ω_s; returns how many moved.
+    fn switch(&mut self, ends: &[u32], families: &Families) -> usize {
+        let mut moved = 0;
+        for &i in ends {
+            let i = i as usize;
+            let neighborhood =
+                std::iter::once(i).chain(families.range(i).map(|b| families.neighbors[b] as usize));
+            for k in neighborhood {
+                if self.mask[k] == WLS {
+                    self.mask[k] = STANDARD;
+                    moved += 1;
+                }
+            }
+        }
+        self.standard_nodes += moved;
+        moved
+    }
+
+    /// The switching check (3.80) on `positions` (u^{n+1}), if due at `step`: returns the
+    /// number of nodes switched.
+    pub fn check(
+        &mut self,
+        step: u64,
+        time: f64,
+        positions: &[[f64; D]],
+        families: &Families,
+        critical_stretch: f64,
+    ) -> usize {
+        if !self.spec.adaptive || !step.is_multiple_of(self.spec.check_every) {
+            return 0;
+        }
+        // s ≥ χ s0  ⟺  r² ≥ (1 + χ s0)² l²: no square root on the common path.
+        let factor = (1.0 + self.spec.chi * critical_stretch).powi(2);
+        let mask = &self.mask;
+        let is_critical = |i: usize, b: usize| {
+            let j = families.neighbors[b] as usize;
+            let r2: f64 = (0..D)
+                .map(|k| (positions[j][k] - positions[i][k]).powi(2))
+                .sum();
+            let l = families.lengths[b];
+            r2 >= factor * l * l
+        };
+        let critical_nodes: Vec<u32> = self
+            .check_nodes
+            .par_iter()
+            .with_min_len(256)
+            .filter(|&&i| {
+                let i = i as usize;
+                mask[i] == WLS && families.range(i).any(|b| is_critical(i, b))
+            })
+            .copied()
+            .collect();
+        self.checked_bonds += self.check_bonds;
+        let ends: Vec<u32> = critical_nodes
+            .iter()
+            .flat_map(|&i| {
+                let i = i as usize;
+                families
+                    .range(i)
+                    .filter(move |&b| is_critical(i, b))
+                    .flat_map(move |b| [i as u32, families.neighbors[b]])
+            })
+            .collect();
+        if ends.is_empty() {
+            return 0;
+        }
+        let moved = self.switch(&ends, families);
+        if moved > 0 {
+            self.events.push(SwitchEvent {
+                step,
+                time,
+                nodes: moved,
+                forced: false,
+            });
+            self.rebuild_check_set(families);
+        }
+        moved
+    }
+
+    /// Ω_w nodes that lost a bond (broken from the Ω_s side): damage reached Ω_w. They and their
+    /// neighbourhoods switch at once, with a forced event; returns how many were found.
+    pub fn enforce(&mut self, step: u64, time: f64, intact: &[u8], families: &Families) -> usize {
+        let mask = &self.mask;
+        let reached: Vec<u32> = (0..mask.len())
+            .into_par_iter()
+            .filter(|&j| mask[j] == STANDARD)
+            .flat_map_iter(|j| {
+                families
+                    .range(j)
+                    .filter(|&b| intact[b] == 0 && mask[families.neighbors[b] as usize] == WLS)
+                    .map(|b| families.neighbors[b])
+            })
+            .collect();
+        if reached.is_empty() {
+            return 0;
+        }
+        let moved = self.switch(&reached, families);
+        self.events.push(SwitchEvent {
+            step,
+            time,
+            nodes: moved,
+            forced: true,
+        });
+        self.rebuild_check_set(families);
+        reached.len()
+    }
+
+    /// The linearized operator per unit mass on the Ω_w rows, −K u / ρ (the sign of the
+    /// standard scheme's `apply_linearized`), for stable-step estimates; other rows untouched.
+    pub fn apply_linearized(&self, u: &[[f64; D]], density: f64, out: &mut [[f64; D]]) {
+        let (op, mask) = (&self.wls, &self.mask);
+        for (r, &i) in op.rows.iter().enumerate() {
+            if mask[i as usize] == WLS {
+                out[i as usize] = op.apply_row(r, u).map(|f| -f / density);
+            }
+        }
+    }
+
+    /// WLS forces K u on the Ω_w nodes (u = positions − reference), written into their terms
+    /// with the linear-elastic energy density W_i = −½ u_i · f_i.
+    pub fn wls_forces(
+        &mut self,
+        reference: &[[f64; D]],
+        positions: &[[f64; D]],
+        terms: &mut [NodeTerms<D>],
+    ) {
+        self.displacement
+            .par_iter_mut()
+            .zip(positions.par_iter().zip(reference))
+            .for_each(|(u, (y, x))| *u = std::array::from_fn(|k| y[k] - x[k]));
+        let (op, mask, u) = (&self.wls, &self.mask, &self.displacement);
+        self.wls_force
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(r, f)| {
+                if mask[op.rows[r] as usize] == WLS {
+                    *f = op.apply_row(r, u);
+                }
+            });
+        for (r, &i) in op.rows.iter().enumerate() {
+            let i = i as usize;
+            if mask[i] == WLS {
+                let f = self.wls_force[r];
+                terms[i].force = f;
+                terms[i].energy_density = -0.5 * (0..D).map(|k| u[i][k] * f[k]).sum::<f64>();
+            }
+        }
+    }
+}

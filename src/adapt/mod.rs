@@ -1,0 +1,3 @@
+//! Adaptive configurations that change which scheme (or grid) updates each node.
+
+pub mod hybrid;

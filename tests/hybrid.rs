@@ -1,0 +1,243 @@
+//! The hybrid configuration (thesis §3.3, seed-003 §5): one grid, Ω_s standard (PMB with
+//! failure) and Ω_w WLS-2 (linearized), Ω_s grown where bonds reach χ·s0.
+
+use peridyn::adapt::hybrid::{self, Hybrid};
+use peridyn::runner::{self, NullSink};
+use peridyn::scene::Scene;
+use peridyn::sim::{Simulation, Stepper};
+
+fn load(preset: &str, variant: &str, set: &[&str]) -> Scene {
+    let set: Vec<String> = set.iter().map(|s| s.to_string()).collect();
+    Scene::load_with(preset, Some(variant), &set).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// With Ω_s = everything (a band wider than the plate) and χ = 1, the hybrid code path gives
+/// the standard scheme's result bit for bit.
+#[test]
+fn all_standard_hybrid_is_bit_identical_to_the_standard_scheme() {
+    let common = ["time.dt=\"50 ns\"", "time.end=\"120 steps\""];
+    let mut standard = Simulation::<2>::new(&load("kalthoff-winkler", "small", &common)).unwrap();
+    let mut with_hybrid = Simulation::<2>::new(&load(
+        "kalthoff-winkler",
+        "small-hybrid",
+        &[
+            common[0],
+            common[1],
+            "hybrid.band=\"1 m\"",
+            "hybrid.chi=1.0",
+        ],
+    ))
+    .unwrap();
+    assert_eq!(
+        with_hybrid.hybrid.as_ref().unwrap().standard_fraction(),
+        1.0
+    );
+    for _ in 0..120 {
+        standard.step().unwrap();
+        with_hybrid.step().unwrap();
+    }
+    assert!(standard.broken_bonds() > 0, "cracks started");
+    assert_eq!(standard.broken_bonds(), with_hybrid.broken_bonds());
+    assert_eq!(standard.positions, with_hybrid.positions, "bit for bit");
+    assert_eq!(standard.velocities, with_hybrid.velocities);
+}
+
+/// With Ω_w = everything and no failure, the hybrid code path is velocity-Verlet on the WLS
+/// operator: ρ ü = K u, compared with the same integration done by hand.
+#[test]
+fn all_wls_hybrid_is_the_wls_scheme() {
+    let scene = load(
+        "vibrating-plate",
+        "small",
+        &[
+            "discretization.scheme=\"hybrid-fixed\"",
+            "time.dt=\"20 ns\"",
+        ],
+    );
+    let mut sim = Simulation::<2>::new(&scene).unwrap();
+    let n = sim.lattice.len();
+    let everything_wls = vec![hybrid::WLS; n];
+    let spec = scene.hybrid.unwrap();
+    let h = Hybrid::new(
+        spec,
+        everything_wls,
+        &sim.lattice.positions,
+        &sim.families,
+        &sim.law,
+        3,
+    )
+    .unwrap();
+    // The reference: the same operator, integrated here.
+    let op = peridyn::scheme::wls::elasticity_operator(
+        &(0..n as u32).collect::<Vec<_>>(),
+        &sim.lattice.positions,
+        &sim.families,
+        &peridyn::scheme::wls::Basis::new(2, 2),
+        &peridyn::scheme::wls::bond_l(
+            &peridyn::scheme::wls::Basis::new(2, 2),
+            sim.law.micromodulus,
+            sim.law.horizon,
+            sim.law.influence,
+        ),
+        sim.law.horizon,
+        3,
+    )
+    .unwrap();
+    sim.hybrid = Some(h);
+    sim.refresh_forces();
+    let rho = scene.material.as_ref().unwrap().density;
+    let dt = sim.dt;
+    let reference = sim.lattice.positions.clone();
+    let mut y = sim.positions.clone();
+    let mut v = sim.velocities.clone();
+    let accel = |y: &[[f64; 2]]| -> Vec<[f64; 2]> {
+        let u: Vec<[f64; 2]> = y
+            .iter()
+            .zip(&reference)
+            .map(|(p, x)| [p[0] - x[0], p[1] - x[1]])
+            .collect();
+        let mut f = vec![[0.0; 2]; n];
+        op.apply_rows(&u, &mut f);
+        f.iter().map(|f| [f[0] / rho, f[1] / rho]).collect()
+    };
+    let mut a = accel(&y);
+    for _ in 0..200 {
+        sim.step().unwrap();
+        for i in 0..n {
+            for k in 0..2 {
+                v[i][k] += 0.5 * dt * a[i][k];
+                y[i][k] += dt * v[i][k];
+            }
+        }
+        a = accel(&y);
+        for i in 0..n {
+            for k in 0..2 {
+                v[i][k] += 0.5 * dt * a[i][k];
+            }
+        }
+    }
+    let scale = v.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
+    for i in 0..n {
+        for k in 0..2 {
+            assert!(
+                (sim.velocities[i][k] - v[i][k]).abs() <= 1e-9 * scale,
+                "node {i}"
+            );
+            assert!((sim.positions[i][k] - y[i][k]).abs() <= 1e-12);
+        }
+    }
+    assert_eq!(sim.broken_bonds(), 0);
+}
+
+/// Runs a hybrid KW scene step by step, checking the invariant (no bond broken with an Ω_w
+/// end) after every step and that Ω_s only grows; returns (simulation, Ω_s fractions).
+fn run_checked(scene: &Scene) -> (Simulation<2>, Vec<f64>) {
+    let mut sim = Simulation::<2>::new(scene).unwrap();
+    let mut fractions = vec![sim.hybrid.as_ref().unwrap().standard_fraction()];
+    for _ in 0..sim.total_steps {
+        sim.step().unwrap();
+        assert_eq!(
+            sim.enforce_hybrid_invariant(),
+            0,
+            "damage reached Ω_w at step {}",
+            sim.steps_done()
+        );
+        let f = sim.hybrid.as_ref().unwrap().standard_fraction();
+        assert!(f >= *fractions.last().unwrap(), "Ω_s only grows");
+        fractions.push(f);
+    }
+    (sim, fractions)
+}
+
+/// Kalthoff–Winkler `medium`, hybrid adaptive against all standard on the same grid and Δt:
+/// crack angles within 3°, damage fields agree (fewer than 2 % of nodes differ by > 0.3), Ω_s
+/// grows monotonically from its initial band and stays below 40 %; no bond ever breaks in Ω_w.
+#[test]
+fn kalthoff_winkler_medium_hybrid_matches_the_standard_scheme() {
+    let hybrid_scene = load("kalthoff-winkler", "medium-hybrid", &[]);
+    let (mut h, fractions) = run_checked(&hybrid_scene);
+    // The same grid and time step, all standard.
+    let dt = format!("time.dt={}", h.dt);
+    let mut s = Simulation::<2>::new(&load("kalthoff-winkler", "medium", &[&dt])).unwrap();
+    let stop = Default::default();
+    runner::run(&mut s, &mut NullSink, &stop, None, &mut |_, _| {});
+    assert_eq!(s.steps_done(), h.steps_done());
+    let (initial, last) = (fractions[0], *fractions.last().unwrap());
+    eprintln!(
+        "Ω_s {:.2} % → {:.2} %, broken bonds {} (hybrid) vs {} (standard)",
+        100.0 * initial,
+        100.0 * last,
+        h.broken_bonds(),
+        s.broken_bonds()
+    );
+    assert!(last > initial, "Ω_s followed the cracks");
+    assert!(last < 0.4);
+    for ((name, a), (_, b)) in h.crack_angles().iter().zip(s.crack_angles()) {
+        let (a, b) = (a.unwrap(), b.unwrap());
+        eprintln!("{name}: hybrid {a:.1}°, standard {b:.1}°");
+        assert!((a - b).abs() <= 3.0, "{name}: {a} vs {b}");
+    }
+    let (dh, ds) = (h.damage(), s.damage());
+    let differ = dh
+        .iter()
+        .zip(&ds)
+        .filter(|(a, b)| (*a - *b).abs() > 0.3)
+        .count();
+    let share = differ as f64 / dh.len() as f64;
+    eprintln!(
+        "nodes whose damage differs by > 0.3: {:.3} %",
+        100.0 * share
+    );
+    assert!(share < 0.02);
+    // Damage only in Ω_s.
+    let mask = h.hybrid.as_ref().unwrap().mask().to_vec();
+    assert!(
+        dh.iter()
+            .zip(&mask)
+            .all(|(d, &m)| m == hybrid::STANDARD || *d == 0.0)
+    );
+    let _ = h.frame();
+}
+
+/// Lowering χ enlarges Ω_s; χ = 0.99 still keeps damage out of Ω_w (every bond of Ω_w is
+/// checked every step, so a bond is switched before it can break); χ changes live.
+#[test]
+fn chi_controls_the_size_of_omega_s() {
+    let fraction = |chi: &str| -> f64 {
+        let scene = load(
+            "kalthoff-winkler",
+            "small-hybrid",
+            &[&format!("hybrid.chi={chi}")],
+        );
+        let (sim, _) = run_checked(&scene);
+        sim.hybrid.as_ref().unwrap().standard_fraction()
+    };
+    let (low, default, high) = (fraction("0.8"), fraction("0.95"), fraction("0.99"));
+    eprintln!("Ω_s at the end: χ = 0.8 {low:.4}, 0.95 {default:.4}, 0.99 {high:.4}");
+    assert!(low > default && low > high, "lowering χ enlarges Ω_s");
+
+    let scene = load("kalthoff-winkler", "small-hybrid", &[]);
+    let mut sim = Simulation::<2>::new(&scene).unwrap();
+    let half = sim.total_steps / 2;
+    for _ in 0..half {
+        sim.step().unwrap();
+    }
+    let before = sim.hybrid.as_ref().unwrap().standard_fraction();
+    assert!(sim.hybrid.as_mut().unwrap().set_chi(1.5).is_err());
+    sim.hybrid.as_mut().unwrap().set_chi(0.3).unwrap();
+    sim.step().unwrap();
+    let after = sim.hybrid.as_ref().unwrap().standard_fraction();
+    assert!(
+        after > before,
+        "χ = 0.3 switches more at once: {before} → {after}"
+    );
+    let frame = sim.frame();
+    assert_eq!(frame.scalar("hybrid/chi"), Some(0.3));
+    assert!(
+        frame
+            .events
+            .iter()
+            .any(|e| e.contains("switched to the standard scheme"))
+    );
+    assert_eq!(frame.classes[0].name, "scheme");
+}
