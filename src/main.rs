@@ -95,6 +95,9 @@ enum Command {
         /// Only the WLS-against-standard cost per node-step (2D m = 12, 3D m = 6).
         #[arg(long)]
         schemes_only: bool,
+        /// Only the hybrid-against-standard pair on kalthoff-winkler (`medium`, or `small`).
+        #[arg(long, value_name = "VARIANT", num_args = 0..=1, default_missing_value = "medium")]
+        hybrid_only: Option<String>,
     },
 }
 
@@ -279,12 +282,23 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
             steps,
             variant,
             schemes_only,
+            hybrid_only,
         } => {
+            if let Some(v) = hybrid_only {
+                println!("{}", bench::hybrid::report(&v).map_err(Failure::Runtime)?);
+                return Ok(ExitCode::SUCCESS);
+            }
             if !schemes_only {
                 let report = bench::run(variant.as_deref(), steps).map_err(Failure::Runtime)?;
                 println!("{report}");
             }
             println!("{}", bench::schemes::report(0.5).map_err(Failure::Runtime)?);
+            if !schemes_only {
+                println!(
+                    "{}",
+                    bench::hybrid::report("medium").map_err(Failure::Runtime)?
+                );
+            }
             Ok(ExitCode::SUCCESS)
         }
     }

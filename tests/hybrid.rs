@@ -241,3 +241,19 @@ fn chi_controls_the_size_of_omega_s() {
     );
     assert_eq!(frame.classes[0].name, "scheme");
 }
+
+/// The `near` check policy (Ω_w nodes within 2δ of Ω_s, kept up to date incrementally as Ω_s
+/// grows) also keeps every broken bond inside Ω_s, checked after every step.
+#[test]
+fn near_check_policy_keeps_damage_in_omega_s() {
+    let scene = load(
+        "kalthoff-winkler",
+        "small-hybrid",
+        &["hybrid.check=\"near\""],
+    );
+    let (sim, fractions) = run_checked(&scene);
+    assert!(sim.broken_bonds() > 0);
+    assert!(fractions.last().unwrap() > &fractions[0]);
+    let h = sim.hybrid.as_ref().unwrap();
+    assert!(h.check_nodes().len() < h.mask().iter().filter(|&&m| m == hybrid::WLS).count());
+}

@@ -43,6 +43,7 @@ pub struct Hybrid<const D: usize> {
     displacement: Vec<[f64; D]>,
     /// Ω_w nodes whose bonds the switching check visits, and their bond count.
     check_nodes: Vec<u32>,
+    in_check: Vec<bool>,
     check_bonds: u64,
     standard_nodes: usize,
     initial_standard: usize,
@@ -120,6 +121,7 @@ impl<const D: usize> Hybrid<D> {
             mask,
             wls,
             check_nodes: Vec::new(),
+            in_check: Vec::new(),
             check_bonds: 0,
             standard_nodes,
             initial_standard: standard_nodes,
@@ -132,6 +134,11 @@ impl<const D: usize> Hybrid<D> {
 
     pub fn mask(&self) -> &[u8] {
         &self.mask
+    }
+
+    /// The Ω_w nodes the switching check visits.
+    pub fn check_nodes(&self) -> &[u32] {
+        &self.check_nodes
     }
 
     /// Fraction of nodes in Ω_s.
@@ -163,6 +170,7 @@ impl<const D: usize> Hybrid<D> {
         std::mem::take(&mut self.events)
     }
 
+    /// The initial check set of the policy.
     fn rebuild_check_set(&mut self, families: &Families) {
         let mask = &self.mask;
         self.check_nodes = match self.spec.check {
@@ -190,6 +198,10 @@ impl<const D: usize> Hybrid<D> {
                     .collect()
             }
         };
+        self.in_check = vec![false; mask.len()];
+        for &i in &self.check_nodes {
+            self.in_check[i as usize] = true;
+        }
         self.check_bonds = self
             .check_nodes
             .iter()
@@ -197,9 +209,10 @@ impl<const D: usize> Hybrid<D> {
             .sum();
     }
 
-    /// Moves every node of H_i ∪ H_j of each listed bond end to Ω_s; returns how many moved.
+    /// Moves every node of H_i ∪ H_j of each listed bond end to Ω_s and updates the check set;
+    /// returns how many moved.
     fn switch(&mut self, ends: &[u32], families: &Families) -> usize {
-        let mut moved = 0;
+        let mut switched = Vec::new();
         for &i in ends {
             let i = i as usize;
             let neighborhood =
@@ -207,12 +220,44 @@ impl<const D: usize> Hybrid<D> {
             for k in neighborhood {
                 if self.mask[k] == WLS {
                     self.mask[k] = STANDARD;
-                    moved += 1;
+                    switched.push(k as u32);
                 }
             }
         }
-        self.standard_nodes += moved;
-        moved
+        self.standard_nodes += switched.len();
+        self.extend_check_set(&switched, families);
+        switched.len()
+    }
+
+    /// After a switch: drop switched nodes from the check set and, for the `near` policy, add
+    /// the Ω_w nodes within two family hops of them (incremental, local work only).
+    fn extend_check_set(&mut self, switched: &[u32], families: &Families) {
+        let mask = &self.mask;
+        if self.spec.check == CheckSet::Near {
+            for &k in switched {
+                for b in families.range(k as usize) {
+                    let j = families.neighbors[b] as usize;
+                    let two_hops = std::iter::once(j)
+                        .chain(families.range(j).map(|b2| families.neighbors[b2] as usize));
+                    for c in two_hops {
+                        if mask[c] == WLS && !self.in_check[c] {
+                            self.in_check[c] = true;
+                            self.check_nodes.push(c as u32);
+                        }
+                    }
+                }
+            }
+        }
+        for &k in switched {
+            self.in_check[k as usize] = false;
+        }
+        let in_check = &self.in_check;
+        self.check_nodes.retain(|&i| in_check[i as usize]);
+        self.check_bonds = self
+            .check_nodes
+            .iter()
+            .map(|&i| families.range(i as usize).len() as u64)
+            .sum();
     }
 
     /// The switching check (3.80) on `positions` (u^{n+1}), if due at `step`: returns the
@@ -271,7 +316,6 @@ impl<const D: usize> Hybrid<D> {
                 nodes: moved,
                 forced: false,
             });
-            self.rebuild_check_set(families);
         }
         moved
     }
@@ -300,7 +344,6 @@ impl<const D: usize> Hybrid<D> {
             nodes: moved,
             forced: true,
         });
-        self.rebuild_check_set(families);
         reached.len()
     }
 

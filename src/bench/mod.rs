@@ -1,6 +1,7 @@
 //! `peridyn bench`: directed-bond evaluation throughput on the pmb-block-3d preset, single-
 //! thread and all threads, the share of wall time spent logging, and memory per bond.
 
+pub mod hybrid;
 pub mod schemes;
 
 use std::sync::Arc;
