@@ -491,3 +491,30 @@ fn scalar_scene_mistakes_are_named() {
         assert_clear_error(name, &text, &needles);
     }
 }
+
+#[test]
+fn hybrid_recording_holds_the_scheme_mask_and_omega_s_fraction() {
+    let path = temp("kw-small-hybrid.rrd");
+    let out = peridyn(&[
+        "record",
+        "kalthoff-winkler",
+        "--variant",
+        "small-hybrid",
+        "--steps",
+        "200",
+        "-o",
+        path.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rec = readback::read(&path).unwrap();
+    let scheme = rec.entity("/nodes/scheme").expect("scheme mask entity");
+    assert!(scheme.points.len() >= 2, "mask logged every frame");
+    let fractions = &rec.entity("/metrics/hybrid/omega_s_fraction").unwrap().scalars;
+    let values: Vec<f64> = fractions.values().copied().collect();
+    assert!(values.windows(2).all(|w| w[1] >= w[0]), "{values:?}");
+    assert!(values[0] > 0.0 && values[0] < 0.5);
+    let violations = &rec.entity("/metrics/hybrid/violations").unwrap().scalars;
+    assert!(violations.values().all(|&v| v == 0.0));
+    assert!(rec.entity("/metrics/hybrid/chi").is_some());
+}
