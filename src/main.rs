@@ -405,10 +405,15 @@ fn describe(scene: &Scene, info: &sim::SimInfo, steps: Option<u64>) -> String {
             "{name}: {}D static, {} nodes, {stencil}, {} operator entries, one global solve",
             info.dim, info.nodes, info.bonds
         ),
-        Physics::Diffusion => format!(
-            "{name}: {}D diffusion, {} nodes, {stencil}, Δt = {:.4e} s ({} × forward Euler's \
+        Physics::Diffusion | Physics::Corrosion => format!(
+            "{name}: {}D {}, {} nodes, {stencil}, Δt = {:.4e} s ({} × forward Euler's \
              bound {:.4e} s from the operator's spectral radius), {steps} steps, a frame every {}",
             info.dim,
+            if scene.physics == Physics::Corrosion {
+                "corrosion"
+            } else {
+                "diffusion"
+            },
             info.nodes,
             info.dt,
             ratio(info.dt / info.stable_dt),
@@ -448,8 +453,15 @@ fn print_summary(s: &RunSummary, frames_written: u64) {
         .map(|(n, t)| format!("{n} {t:.2} s"))
         .collect();
     println!("stages: {}", stages.join(", "));
+    let last = |key: &str| s.last_frame.as_ref().and_then(|f| f.scalar(key));
     if let Some(e) = s.relative_error {
         println!("relative l2 error (3.79): {e:.6e}");
+    } else if let Some(loss) = last("corrosion/volume_loss") {
+        println!(
+            "relative volume loss: {loss:.4}  solid nodes: {}  mass Σ C V: {:.10e}",
+            last("corrosion/solid_nodes").unwrap_or(0.0),
+            last("field/integral").unwrap_or(0.0)
+        );
     } else {
         println!("broken bonds: {}", s.broken_bonds);
     }

@@ -8,10 +8,11 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::family::{self, Families};
-use crate::frame::{Frame, NodeField};
+use crate::frame::{ClassField, Frame, NodeField};
 use crate::grid::Lattice;
 use crate::integrate::linear::BandMatrix;
 use crate::integrate::stability;
+use crate::model::corrosion::{self, Corrosion};
 use crate::model::diffusion::DiffusionKernel;
 use crate::scene::error::locate_field;
 use crate::scene::{
@@ -40,6 +41,8 @@ pub struct ScalarSimulation<const D: usize> {
     /// The operator's value on each free node (row order).
     rate: Vec<f64>,
     reference: Option<Reference>,
+    /// Corrosion scenes: phases and bond classes.
+    corrosion: Option<Corrosion>,
     dt: f64,
     stable_dt: f64,
     total_steps: u64,
@@ -49,6 +52,8 @@ pub struct ScalarSimulation<const D: usize> {
     /// |field| scale for the color range and the divergence check.
     amplitude: f64,
     last_frame: (u64, Instant),
+    /// Events since the last frame.
+    events: Vec<String>,
 }
 
 /// The kernel whose operator the scene solves: diffusion's κ ω/‖ξ‖^q, or in 1D static
@@ -56,7 +61,12 @@ pub struct ScalarSimulation<const D: usize> {
 fn kernel(scene: &Scene) -> DiffusionKernel {
     match (&scene.diffusion, &scene.material) {
         (Some(d), _) => DiffusionKernel {
-            diffusivity: d.diffusivity,
+            // Corrosion: κ depends on the bond's class; the operator is assembled with κ = 1.
+            diffusivity: if d.corrosion.is_some() {
+                1.0
+            } else {
+                d.diffusivity
+            },
             exponent: d.exponent,
             influence: d.influence,
             horizon: scene.horizon,
@@ -173,11 +183,26 @@ impl<const D: usize> ScalarSimulation<D> {
             .map_err(|m| error("discretization.collocation_factor", m))?;
 
         let reference = scene.reference;
+        let eps = 1e-9 * scene.spacing;
         let field: Vec<f64> = lattice
             .positions
             .iter()
-            .map(|x| reference.map_or(0.0, |r| r.value(x, 0.0)))
+            .map(|x| {
+                let set = scene
+                    .initial_concentration
+                    .iter()
+                    .rev()
+                    .find(|(region, _)| region.contains(x, eps))
+                    .map(|(_, v)| *v);
+                set.unwrap_or_else(|| reference.map_or(0.0, |r| r.value(x, 0.0)))
+            })
             .collect();
+        let corrosion = scene.diffusion.and_then(|d| {
+            d.corrosion
+                .map(|c| Corrosion::new(d.diffusivity, c, &field, &lattice.volumes))
+        });
+        // The unit operator times the largest bond κ bounds the corrosion operator's spectrum.
+        let kappa_scale = corrosion.as_ref().map_or(1.0, |c| c.kappa_max());
         let amplitude = reference
             .map_or(0.0, |r| {
                 r.amplitude(lattice.positions.iter().map(|x| x.as_slice()))
@@ -188,9 +213,10 @@ impl<const D: usize> ScalarSimulation<D> {
             Physics::Static => (0.0, f64::INFINITY, 1),
             _ => {
                 let n = lattice.len();
-                let radius = stability::spectral_radius(n, POWER_ITERATIONS, |v, out| {
-                    operator.apply(v, out)
-                });
+                let radius = kappa_scale
+                    * stability::spectral_radius(n, POWER_ITERATIONS, |v, out| {
+                        operator.apply(v, out)
+                    });
                 let stable_dt = stability::euler_limit(radius * SPECTRAL_MARGIN);
                 let dt = match scene.time.step {
                     StepSize::Absolute(dt) => {
@@ -226,6 +252,7 @@ impl<const D: usize> ScalarSimulation<D> {
             field,
             rate: vec![0.0; rows],
             reference,
+            corrosion,
             dt,
             stable_dt,
             total_steps,
@@ -234,6 +261,7 @@ impl<const D: usize> ScalarSimulation<D> {
             timers: StageTimers::default(),
             amplitude,
             last_frame: (0, Instant::now()),
+            events: Vec::new(),
         })
     }
 
@@ -351,11 +379,24 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             return Ok(());
         }
         let t = self.time();
-        self.operator.apply_rows(&self.field, &mut self.rate);
+        match &self.corrosion {
+            Some(c) => c.rates(&self.operator, &self.field, &mut self.rate),
+            None => self.operator.apply_rows(&self.field, &mut self.rate),
+        }
         let t1 = Instant::now();
         let max_value = self.euler_update(t);
         let t2 = Instant::now();
         self.hold_reference(t + self.dt);
+        if let Some(c) = self.corrosion.as_mut() {
+            let changed = c.update_phases(&self.field);
+            if changed > 0 {
+                self.events.push(format!(
+                    "t = {:.4e} s (step {}): {changed} nodes turned liquid",
+                    t + self.dt,
+                    self.step + 1
+                ));
+            }
+        }
         let t3 = Instant::now();
         self.timers.forces += t1 - t0;
         self.timers.kick += t2 - t1;
@@ -412,6 +453,23 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             Physics::Static => "displacement",
             _ => "concentration",
         };
+        let mut classes = Vec::new();
+        if let Some(c) = &self.corrosion {
+            scalars.push((
+                "corrosion/volume_loss".to_string(),
+                c.volume_loss(&self.volumes),
+            ));
+            let solid = c.phase.iter().filter(|&&p| p == corrosion::SOLID).count();
+            scalars.push(("corrosion/solid_nodes".to_string(), solid as f64));
+            classes.push(ClassField {
+                name: "phase",
+                ids: c.phase.iter().map(|&p| u16::from(p)).collect(),
+                classes: &[
+                    (corrosion::LIQUID as u16, "liquid", [107, 174, 214]),
+                    (corrosion::SOLID as u16, "solid", [150, 150, 150]),
+                ],
+            });
+        }
         let amplitude = if self.amplitude > 0.0 {
             self.amplitude
         } else {
@@ -435,8 +493,8 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
                     range: (-error_range, error_range),
                 },
             ],
-            classes: Vec::new(),
-            events: Vec::new(),
+            classes,
+            events: std::mem::take(&mut self.events),
             scalars,
         }
     }

@@ -506,11 +506,18 @@ fn hybrid_recording_holds_the_scheme_mask_and_omega_s_fraction() {
         path.to_str().unwrap(),
         "-q",
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let rec = readback::read(&path).unwrap();
     let scheme = rec.entity("/nodes/scheme").expect("scheme mask entity");
     assert!(scheme.points.len() >= 2, "mask logged every frame");
-    let fractions = &rec.entity("/metrics/hybrid/omega_s_fraction").unwrap().scalars;
+    let fractions = &rec
+        .entity("/metrics/hybrid/omega_s_fraction")
+        .unwrap()
+        .scalars;
     let values: Vec<f64> = fractions.values().copied().collect();
     assert!(values.windows(2).all(|w| w[1] >= w[0]), "{values:?}");
     assert!(values[0] > 0.0 && values[0] < 0.5);

@@ -1,4 +1,5 @@
 //! Constitutive laws, each independent of the discretization and the time integrator.
 
+pub mod corrosion;
 pub mod diffusion;
 pub mod pmb;

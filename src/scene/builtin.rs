@@ -2,6 +2,10 @@
 
 const PRESETS: &[(&str, &str)] = &[
     (
+        "corrosion-1d",
+        include_str!("../../presets/corrosion-1d.toml"),
+    ),
+    (
         "diffusion-2d-manufactured",
         include_str!("../../presets/diffusion-2d-manufactured.toml"),
     ),

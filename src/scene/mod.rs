@@ -48,6 +48,8 @@ pub struct Scene {
     pub precracks: Vec<CrackGeometry>,
     pub boundary: Vec<BoundarySpec>,
     pub initial_velocity: Vec<InitialVelocity>,
+    /// Initial concentration regions (later entries win; 0 elsewhere).
+    pub initial_concentration: Vec<(Solid, f64)>,
     pub time: TimeSpec,
     pub output_every: Option<u64>,
     pub crack_angles: Vec<CrackAngleSpec>,
@@ -66,9 +68,20 @@ pub struct MaterialSpec {
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DiffusionSpec {
+    /// κ (κ_liq for corrosion).
     pub diffusivity: f64,
     pub exponent: f64,
     pub influence: Influence,
+    /// Corrosion only.
+    pub corrosion: Option<CorrosionSpec>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CorrosionSpec {
+    /// κ_int of solid–liquid bonds.
+    pub interface_diffusivity: f64,
+    /// C_sat.
+    pub saturation: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -146,6 +146,9 @@ pub enum Physics {
     Static,
     /// Transient PD diffusion with forward Euler (3.4)/(3.30).
     Diffusion,
+    /// Bi-material corrosion (2.48)–(2.49), (2.79): diffusion with bond classes by phase and
+    /// an irreversible solid → liquid change below the saturation concentration.
+    Corrosion,
 }
 
 /// Manufactured solutions of seed-004 §4 (thesis §3.2.5–3.2.6).
@@ -314,6 +317,11 @@ pub struct Material {
     pub diffusivity: Option<Quantity>,
     /// Diffusion only: the kernel exponent q (errata 7).
     pub kernel_exponent: Option<f64>,
+    /// Corrosion: κ_int of solid–liquid bonds ("micro-dissolvability"); `diffusivity` is κ_liq
+    /// of liquid–liquid bonds; solid–solid bonds carry no flux.
+    pub interface_diffusivity: Option<Quantity>,
+    /// Corrosion: C_sat; a solid node whose concentration drops below it turns liquid.
+    pub saturation: Option<Quantity>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -365,6 +373,16 @@ pub struct BoundaryLayer {
 pub struct Initial {
     #[serde(default)]
     pub velocity: Vec<VelocityField>,
+    /// Diffusion and corrosion: concentration set in regions (later entries win; 0 elsewhere).
+    #[serde(default)]
+    pub concentration: Vec<ConcentrationRegion>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConcentrationRegion {
+    pub region: Shape,
+    pub value: Quantity,
 }
 
 /// Initial velocity contributions, summed.

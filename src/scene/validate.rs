@@ -107,7 +107,7 @@ pub(super) fn validate(
     }
 
     let (material, diffusion) = match physics {
-        Physics::Diffusion => (None, Some(diffusion(p, ctx)?)),
+        Physics::Diffusion | Physics::Corrosion => (None, Some(diffusion(p, ctx, physics)?)),
         Physics::Static if dim != 1 => {
             return Err(ctx.error(
                 "physics",
@@ -120,6 +120,15 @@ pub(super) fn validate(
         return Err(ctx.error("precracks", "pre-cracks need physics = \"dynamics\""));
     }
     let hybrid = hybrid(p, ctx, scheme.kind, spacing, horizon)?;
+    if physics == Physics::Corrosion && scheme.kind != SchemeKind::Standard {
+        return Err(ctx.error(
+            "discretization.scheme",
+            format!(
+                "\"{}\": corrosion's bond classes need the standard scheme",
+                scheme.kind.name()
+            ),
+        ));
+    }
     if physics != Physics::Dynamics && scheme.kind.is_hybrid() {
         return Err(ctx.error(
             "discretization.scheme",
@@ -164,6 +173,27 @@ pub(super) fn validate(
         .map(|(i, c)| precrack(c, dim, &format!("precracks[{i}]")))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|m| ctx.from_path_message(&m))?;
+    let initial_concentration = p
+        .initial
+        .concentration
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let path = format!("initial.concentration[{i}]");
+            let value = c.value.si();
+            if !value.is_finite() {
+                return Err(format!("{path}.value: must be finite, got {value}"));
+            }
+            Ok((c.region.to_solid(dim, &format!("{path}.region"))?, value))
+        })
+        .collect::<Result<Vec<_>, String>>()
+        .map_err(|m| ctx.from_path_message(&m))?;
+    if physics == Physics::Dynamics && !initial_concentration.is_empty() {
+        return Err(ctx.error(
+            "initial.concentration",
+            "concentrations need physics = \"diffusion\" or \"corrosion\"",
+        ));
+    }
     let initial_velocity = p
         .initial
         .velocity
@@ -234,6 +264,7 @@ pub(super) fn validate(
         precracks,
         boundary,
         initial_velocity,
+        initial_concentration,
         time,
         output_every: p.output.every,
         crack_angles,
@@ -301,7 +332,11 @@ fn material(
     })
 }
 
-fn diffusion(p: &Preset, ctx: &ErrorContext) -> Result<DiffusionSpec, SceneError> {
+fn diffusion(
+    p: &Preset,
+    ctx: &ErrorContext,
+    physics: Physics,
+) -> Result<DiffusionSpec, SceneError> {
     let m = &p.material;
     let diffusivity = match m.diffusivity {
         Some(k) => positive(ctx, "material.diffusivity", k.si())?,
@@ -314,10 +349,34 @@ fn diffusion(p: &Preset, ctx: &ErrorContext) -> Result<DiffusionSpec, SceneError
             format!("q must be in [0, 3) so the kernel stays integrable in 1D–3D, got {exponent}"),
         ));
     }
+    let corrosion = match physics {
+        Physics::Corrosion => {
+            let interface = m.interface_diffusivity.ok_or_else(|| {
+                ctx.error(
+                    "material.interface_diffusivity",
+                    "corrosion needs κ_int of solid–liquid bonds (`interface_diffusivity`)",
+                )
+            })?;
+            let interface = positive(ctx, "material.interface_diffusivity", interface.si())?;
+            let saturation = m.saturation.ok_or_else(|| {
+                ctx.error(
+                    "material.saturation",
+                    "corrosion needs the saturation concentration C_sat (`saturation`)",
+                )
+            })?;
+            let saturation = positive(ctx, "material.saturation", saturation.si())?;
+            Some(CorrosionSpec {
+                interface_diffusivity: interface,
+                saturation,
+            })
+        }
+        _ => None,
+    };
     Ok(DiffusionSpec {
         diffusivity,
         exponent,
         influence: m.influence,
+        corrosion,
     })
 }
 
