@@ -1,8 +1,6 @@
 //! Bi-material corrosion (thesis §1.6 / §3.4.1): bond classes by phase, irreversible
 //! solid → liquid change below C_sat; `corrosion-1d`.
 
-use peridyn::frame::Frame;
-use peridyn::runner::FrameSink;
 use peridyn::scene::Scene;
 use peridyn::sim::{self, Stepper};
 
@@ -27,14 +25,6 @@ fn history(variant: Option<&str>) -> Vec<(f64, f64, f64, f64)> {
         record(&mut sim);
     }
     rows
-}
-
-struct Collect(Vec<Frame>);
-impl FrameSink for Collect {
-    fn send(&mut self, frame: Frame) {
-        self.0.push(frame);
-    }
-    fn message(&mut self, _: &str, _: &str) {}
 }
 
 /// No-flux ends: total mass Σ C V is conserved to 1e-10 relative; the solid only shrinks.
