@@ -1,6 +1,6 @@
 //! Node lattices: vertex-centred uniform grids clipped to the body, with optional perturbation.
 
-use crate::scene::Solid;
+use crate::scene::{Scene, SceneError, Solid};
 
 /// Nodes of one grid level, struct-of-arrays.
 #[derive(Debug, Clone)]
@@ -54,6 +54,18 @@ impl<const D: usize> Lattice<D> {
             volumes,
             spacing: dx,
         }
+    }
+
+    /// The scene's lattice; an error if the body holds no node.
+    pub fn of_scene(scene: &Scene) -> Result<Self, SceneError> {
+        let lattice = Lattice::build(&scene.solid, scene.spacing, scene.perturbation, scene.seed);
+        if lattice.is_empty() {
+            return Err(scene.error(
+                "geometry",
+                "the body contains no lattice node; check its size against discretization.spacing",
+            ));
+        }
+        Ok(lattice)
     }
 
     pub fn len(&self) -> usize {

@@ -14,7 +14,6 @@ use crate::integrate::linear::BandMatrix;
 use crate::integrate::stability;
 use crate::model::corrosion::{self, Corrosion};
 use crate::model::diffusion::DiffusionKernel;
-use crate::scene::error::locate_field;
 use crate::scene::{
     Condition, Duration, Influence, Physics, Reference, Scene, SceneError, StepSize,
 };
@@ -129,21 +128,8 @@ pub fn assemble<const D: usize>(
 
 impl<const D: usize> ScalarSimulation<D> {
     pub fn new(scene: &Scene) -> Result<Self, SceneError> {
-        let error = |field: &str, message: String| SceneError {
-            file: scene.source.clone(),
-            field: field.to_string(),
-            line: locate_field(&scene.preset_text, field),
-            message,
-        };
-        let lattice =
-            Lattice::<D>::build(&scene.solid, scene.spacing, scene.perturbation, scene.seed);
-        if lattice.is_empty() {
-            return Err(error(
-                "geometry",
-                "the body contains no lattice node; check its size against discretization.spacing"
-                    .into(),
-            ));
-        }
+        let error = |field: &str, message: String| scene.error(field, message);
+        let lattice = Lattice::<D>::of_scene(scene)?;
         let (lo, hi) = scene.solid.bounds();
         let eps = 1e-9 * scene.spacing;
         let mut is_held = vec![false; lattice.len()];
@@ -525,14 +511,6 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
 
     fn timers(&self) -> &StageTimers {
         &self.timers
-    }
-
-    fn crack_angles(&self) -> Vec<(String, Option<f64>)> {
-        Vec::new()
-    }
-
-    fn broken_bonds(&self) -> u64 {
-        0
     }
 
     fn relative_error(&self) -> Option<f64> {

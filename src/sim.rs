@@ -11,7 +11,6 @@ use crate::integrate::{self, stability, verlet};
 use crate::metrics;
 use crate::model::pmb::PmbLaw;
 use crate::scalar::ScalarSimulation;
-use crate::scene::error::locate_field;
 use crate::scene::{Condition, Duration, InitialVelocity, Physics, Scene, SceneError, StepSize};
 use crate::scheme::standard::{self, NodeTerms, Quadrature, Standard};
 
@@ -128,8 +127,12 @@ pub trait Stepper: Send {
     fn time(&self) -> f64;
     fn timers(&self) -> &StageTimers;
     /// Final crack angles `(name, degrees)` (None where no crack was found).
-    fn crack_angles(&self) -> Vec<(String, Option<f64>)>;
-    fn broken_bonds(&self) -> u64;
+    fn crack_angles(&self) -> Vec<(String, Option<f64>)> {
+        Vec::new()
+    }
+    fn broken_bonds(&self) -> u64 {
+        0
+    }
     /// Relative ℓ² error (3.79) against the scene's reference solution, if it has one.
     fn relative_error(&self) -> Option<f64> {
         None
@@ -213,21 +216,8 @@ pub struct Simulation<const D: usize> {
 
 impl<const D: usize> Simulation<D> {
     pub fn new(scene: &Scene) -> Result<Self, SceneError> {
-        let error = |field: &str, message: String| SceneError {
-            file: scene.source.clone(),
-            field: field.to_string(),
-            line: locate_field(&scene.preset_text, field),
-            message,
-        };
-        let lattice =
-            Lattice::<D>::build(&scene.solid, scene.spacing, scene.perturbation, scene.seed);
-        if lattice.is_empty() {
-            return Err(error(
-                "geometry",
-                "the body contains no lattice node; check its size against discretization.spacing"
-                    .into(),
-            ));
-        }
+        let error = |field: &str, message: String| scene.error(field, message);
+        let lattice = Lattice::<D>::of_scene(scene)?;
         let radius = family::search_radius(scene.family_radius, scene.horizon, scene.spacing);
         let families = Families::build(&lattice.positions, radius);
         let mut intact = standard::intact_bonds(families.bond_count());

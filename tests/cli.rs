@@ -14,6 +14,17 @@ fn peridyn(args: &[&str]) -> Output {
         .expect("run peridyn")
 }
 
+/// Runs peridyn, asserts success and returns its stdout.
+fn run_ok(args: &[&str]) -> String {
+    let out = peridyn(args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).to_string()
+}
+
 fn temp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("peridyn-test-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -167,7 +178,7 @@ fn steps_of(rec: &readback::Recording, entity: &str) -> Vec<i64> {
 #[test]
 fn kalthoff_winkler_small_recording_reads_back() {
     let path = temp("kw-small.rrd");
-    let out = peridyn(&[
+    let stdout = run_ok(&[
         "record",
         "kalthoff-winkler",
         "--variant",
@@ -176,12 +187,6 @@ fn kalthoff_winkler_small_recording_reads_back() {
         path.to_str().unwrap(),
         "-q",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("bond evaluations/s"), "{stdout}");
 
     let scene = peridyn::scene::Scene::load("kalthoff-winkler", Some("small")).unwrap();
@@ -323,7 +328,7 @@ fn a_scene_too_large_for_memory_is_refused_before_building() {
 #[test]
 fn diffusion_recording_holds_concentration_error_and_error_norm() {
     let path = temp("diffusion-small.rrd");
-    let out = peridyn(&[
+    let stdout = run_ok(&[
         "record",
         "diffusion-2d-manufactured",
         "--variant",
@@ -334,12 +339,6 @@ fn diffusion_recording_holds_concentration_error_and_error_norm() {
         path.to_str().unwrap(),
         "-q",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let stdout = String::from_utf8_lossy(&out.stdout);
     let printed: f64 = stdout
         .lines()
         .find_map(|l| l.strip_prefix("relative l2 error (3.79): "))
@@ -393,7 +392,7 @@ fn ill_conditioned_collocation_set_names_the_node_and_the_fix() {
 #[test]
 fn sweep_writes_csv_markdown_and_plots() {
     let dir = temp("sweep-static");
-    let out = peridyn(&[
+    run_ok(&[
         "sweep",
         "static-1d-manufactured",
         "--vary",
@@ -403,11 +402,6 @@ fn sweep_writes_csv_markdown_and_plots() {
         "--out",
         dir.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let csv = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(
@@ -495,7 +489,7 @@ fn scalar_scene_mistakes_are_named() {
 #[test]
 fn hybrid_recording_holds_the_scheme_mask_and_omega_s_fraction() {
     let path = temp("kw-small-hybrid.rrd");
-    let out = peridyn(&[
+    run_ok(&[
         "record",
         "kalthoff-winkler",
         "--variant",
@@ -506,11 +500,6 @@ fn hybrid_recording_holds_the_scheme_mask_and_omega_s_fraction() {
         path.to_str().unwrap(),
         "-q",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let rec = readback::read(&path).unwrap();
     let scheme = rec.entity("/nodes/scheme").expect("scheme mask entity");
     assert!(scheme.points.len() >= 2, "mask logged every frame");

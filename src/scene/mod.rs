@@ -194,6 +194,16 @@ pub struct CrackAngleSpec {
 }
 
 impl Scene {
+    /// An error about one of this scene's fields, located in its preset text.
+    pub fn error(&self, field: &str, message: impl Into<String>) -> SceneError {
+        SceneError {
+            file: self.source.clone(),
+            field: field.to_string(),
+            line: error::locate_field(&self.preset_text, field),
+            message: message.into(),
+        }
+    }
+
     /// Loads a preset by built-in name or file path.
     pub fn load(name_or_path: &str, variant: Option<&str>) -> Result<Scene, SceneError> {
         Scene::load_with(name_or_path, variant, &[])

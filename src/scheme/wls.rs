@@ -135,12 +135,16 @@ pub fn diffusion_l(
     })
 }
 
-/// L blocks of linearized bond-based elasticity (3.54)–(3.56): entry [k][l][α] is the
-/// coefficient of the α-monomial of displacement component l in force component k,
-/// c R(n + n_d − 2) S(α + e_k + e_l).
-pub fn bond_l(basis: &Basis, c: f64, horizon: f64, influence: Influence) -> Vec<Vec<Vec<f64>>> {
+/// Blocks [k][l][α] = factor · R(n + n_d − 1 − p) S(α + e_k + e_l) of a pair kernel
+/// factor · ω ξ⊗ξ/‖ξ‖^(1+p) acting on (u' − u) (§3.5).
+fn pair_l(
+    basis: &Basis,
+    factor: f64,
+    p: f64,
+    horizon: f64,
+    influence: Influence,
+) -> Vec<Vec<Vec<f64>>> {
     let d = basis.dim;
-    let nd = d as f64;
     (0..d)
         .map(|k| {
             (0..d)
@@ -149,13 +153,21 @@ pub fn bond_l(basis: &Basis, c: f64, horizon: f64, influence: Influence) -> Vec<
                         let mut beta = alpha;
                         beta[k] += 1;
                         beta[l] += 1;
-                        c * radial_moment(n as f64 + nd - 2.0, horizon, influence)
+                        factor
+                            * radial_moment(n as f64 + d as f64 - 1.0 - p, horizon, influence)
                             * angular_moment(beta, d)
                     })
                 })
                 .collect()
         })
         .collect()
+}
+
+/// L blocks of linearized bond-based elasticity (3.54)–(3.56): entry [k][l][α] is the
+/// coefficient of the α-monomial of displacement component l in force component k,
+/// c R(n + n_d − 2) S(α + e_k + e_l) (kernel c ω ξ⊗ξ/‖ξ‖³).
+pub fn bond_l(basis: &Basis, c: f64, horizon: f64, influence: Influence) -> Vec<Vec<Vec<f64>>> {
+    pair_l(basis, c, 1.0, horizon, influence)
 }
 
 /// Collocation set of a node (§3.1): for each point of an auxiliary grid of spacing δ/k_aux
@@ -432,24 +444,8 @@ pub fn lps_shear_l(
     horizon: f64,
     influence: Influence,
 ) -> Vec<Vec<Vec<f64>>> {
-    let d = basis.dim;
-    let factor = 30.0 * shear_modulus / weighted_volume(d, horizon, influence);
-    (0..d)
-        .map(|k| {
-            (0..d)
-                .map(|l| {
-                    per_monomial(basis, |alpha, n| {
-                        let mut beta = alpha;
-                        beta[k] += 1;
-                        beta[l] += 1;
-                        factor
-                            * radial_moment(n as f64 + d as f64 - 1.0, horizon, influence)
-                            * angular_moment(beta, d)
-                    })
-                })
-                .collect()
-        })
-        .collect()
+    let factor = 30.0 * shear_modulus / weighted_volume(basis.dim, horizon, influence);
+    pair_l(basis, factor, 0.0, horizon, influence)
 }
 
 /// L_θ of the linearized dilatation θ = 3/m̄ ∫ ω ξ·(u' − u) dV: entry [l][α] =
