@@ -678,6 +678,7 @@ impl<const D: usize> Stepper for Simulation<D> {
             h.check(
                 self.step + 1,
                 time,
+                &self.lattice.positions,
                 &self.positions,
                 &self.families,
                 self.law.critical_stretch,

@@ -255,5 +255,40 @@ fn near_check_policy_keeps_damage_in_omega_s() {
     assert!(sim.broken_bonds() > 0);
     assert!(fractions.last().unwrap() > &fractions[0]);
     let h = sim.hybrid.as_ref().unwrap();
-    assert!(h.check_nodes().len() < h.mask().iter().filter(|&&m| m == hybrid::WLS).count());
+    let wls = h.mask().iter().filter(|&&m| m == hybrid::WLS).count();
+    assert!(h.check_nodes().len() < wls);
+}
+
+/// The `collocation` policy (collocation bonds of the near nodes only) is cheaper and not
+/// safe: a crack can reach Ω_w. The invariant check (run here every step, in recordings at
+/// every frame) finds it, switches those neighbourhoods with a warning event and counts it.
+#[test]
+fn collocation_check_policy_repairs_damage_that_reached_omega_w() {
+    let scene = load(
+        "kalthoff-winkler",
+        "small-hybrid",
+        &["hybrid.check=\"collocation\""],
+    );
+    let mut sim = Simulation::<2>::new(&scene).unwrap();
+    let mut found = 0;
+    for _ in 0..sim.total_steps {
+        sim.step().unwrap();
+        found += sim.enforce_hybrid_invariant();
+    }
+    let frame = sim.frame();
+    eprintln!("violations {found}");
+    assert!(
+        found > 0,
+        "this scene makes the collocation policy miss a bond"
+    );
+    assert_eq!(frame.scalar("hybrid/violations"), Some(found as f64));
+    assert!(
+        frame
+            .events
+            .iter()
+            .any(|e| e.contains("damage reached Ω_w")),
+        "{:?}",
+        frame.events
+    );
+    assert_eq!(sim.enforce_hybrid_invariant(), 0, "all repaired");
 }

@@ -39,6 +39,8 @@ pub struct Hybrid<const D: usize> {
     mask: Vec<u8>,
     /// Rows: the initial Ω_w nodes; a row is skipped once its node switched.
     wls: VectorOperator<D>,
+    /// Node → its row in `wls` (u32::MAX for nodes that started in Ω_s).
+    row_of: Vec<u32>,
     wls_force: Vec<[f64; D]>,
     displacement: Vec<[f64; D]>,
     /// Ω_w nodes whose bonds the switching check visits, and their bond count.
@@ -114,12 +116,17 @@ impl<const D: usize> Hybrid<D> {
         let wls =
             wls::elasticity_operator(&rows, reference, families, &basis, &l, law.horizon, k_aux)?;
         let standard_nodes = mask.len() - rows.len();
+        let mut row_of = vec![u32::MAX; mask.len()];
+        for (r, &i) in rows.iter().enumerate() {
+            row_of[i as usize] = r as u32;
+        }
         let mut hybrid = Hybrid {
             spec,
             wls_force: vec![[0.0; D]; rows.len()],
             displacement: vec![[0.0; D]; mask.len()],
             mask,
             wls,
+            row_of,
             check_nodes: Vec::new(),
             in_check: Vec::new(),
             check_bonds: 0,
@@ -170,6 +177,23 @@ impl<const D: usize> Hybrid<D> {
         std::mem::take(&mut self.events)
     }
 
+    /// Bonds one check visits under the policy.
+    fn bonds_to_check(&self, families: &Families) -> u64 {
+        let op = &self.wls;
+        self.check_nodes
+            .iter()
+            .map(|&i| {
+                let i = i as usize;
+                if self.spec.check == CheckSet::Collocation {
+                    let r = self.row_of[i] as usize;
+                    (op.offsets[r + 1] - op.offsets[r]) as u64 - 1
+                } else {
+                    families.range(i).len() as u64
+                }
+            })
+            .sum()
+    }
+
     /// The initial check set of the policy.
     fn rebuild_check_set(&mut self, families: &Families) {
         let mask = &self.mask;
@@ -177,7 +201,7 @@ impl<const D: usize> Hybrid<D> {
             CheckSet::All => (0..mask.len() as u32)
                 .filter(|&i| mask[i as usize] == WLS)
                 .collect(),
-            CheckSet::Near => {
+            CheckSet::Near | CheckSet::Collocation => {
                 // Ω_w nodes with an Ω_s node within one family hop, then within two.
                 let touches = |i: usize, flag: &[bool]| {
                     families
@@ -202,11 +226,7 @@ impl<const D: usize> Hybrid<D> {
         for &i in &self.check_nodes {
             self.in_check[i as usize] = true;
         }
-        self.check_bonds = self
-            .check_nodes
-            .iter()
-            .map(|&i| families.range(i as usize).len() as u64)
-            .sum();
+        self.check_bonds = self.bonds_to_check(families);
     }
 
     /// Moves every node of H_i ∪ H_j of each listed bond end to Ω_s and updates the check set;
@@ -233,7 +253,7 @@ impl<const D: usize> Hybrid<D> {
     /// the Ω_w nodes within two family hops of them (incremental, local work only).
     fn extend_check_set(&mut self, switched: &[u32], families: &Families) {
         let mask = &self.mask;
-        if self.spec.check == CheckSet::Near {
+        if self.spec.check != CheckSet::All {
             for &k in switched {
                 for b in families.range(k as usize) {
                     let j = families.neighbors[b] as usize;
@@ -253,11 +273,7 @@ impl<const D: usize> Hybrid<D> {
         }
         let in_check = &self.in_check;
         self.check_nodes.retain(|&i| in_check[i as usize]);
-        self.check_bonds = self
-            .check_nodes
-            .iter()
-            .map(|&i| families.range(i as usize).len() as u64)
-            .sum();
+        self.check_bonds = self.bonds_to_check(families);
     }
 
     /// The switching check (3.80) on `positions` (u^{n+1}), if due at `step`: returns the
@@ -266,6 +282,7 @@ impl<const D: usize> Hybrid<D> {
         &mut self,
         step: u64,
         time: f64,
+        reference: &[[f64; D]],
         positions: &[[f64; D]],
         families: &Families,
         critical_stretch: f64,
@@ -284,27 +301,56 @@ impl<const D: usize> Hybrid<D> {
             let l = families.lengths[b];
             r2 >= factor * l * l
         };
+        // The collocation policy checks row r's columns of the WLS operator instead.
+        let op = &self.wls;
+        let row_of = &self.row_of;
+        let collocation = self.spec.check == CheckSet::Collocation;
+        let critical_collocation = |i: usize, j: usize| {
+            let (r2, l2): (f64, f64) = (0..D).fold((0.0, 0.0), |(r2, l2), k| {
+                (
+                    r2 + (positions[j][k] - positions[i][k]).powi(2),
+                    l2 + (reference[j][k] - reference[i][k]).powi(2),
+                )
+            });
+            j != i && r2 >= factor * l2
+        };
+        let columns = |i: usize| {
+            let r = row_of[i] as usize;
+            &op.columns[op.offsets[r]..op.offsets[r + 1]]
+        };
         let critical_nodes: Vec<u32> = self
             .check_nodes
             .par_iter()
             .with_min_len(256)
             .filter(|&&i| {
                 let i = i as usize;
-                mask[i] == WLS && families.range(i).any(|b| is_critical(i, b))
+                mask[i] == WLS
+                    && if collocation {
+                        columns(i)
+                            .iter()
+                            .any(|&j| critical_collocation(i, j as usize))
+                    } else {
+                        families.range(i).any(|b| is_critical(i, b))
+                    }
             })
             .copied()
             .collect();
         self.checked_bonds += self.check_bonds;
-        let ends: Vec<u32> = critical_nodes
-            .iter()
-            .flat_map(|&i| {
-                let i = i as usize;
-                families
-                    .range(i)
-                    .filter(move |&b| is_critical(i, b))
-                    .flat_map(move |b| [i as u32, families.neighbors[b]])
-            })
-            .collect();
+        let mut ends: Vec<u32> = Vec::new();
+        for &i in &critical_nodes {
+            let i = i as usize;
+            if collocation {
+                for &j in columns(i) {
+                    if critical_collocation(i, j as usize) {
+                        ends.extend([i as u32, j]);
+                    }
+                }
+            } else {
+                for b in families.range(i).filter(|&b| is_critical(i, b)) {
+                    ends.extend([i as u32, families.neighbors[b]]);
+                }
+            }
+        }
         if ends.is_empty() {
             return 0;
         }

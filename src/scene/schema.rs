@@ -80,8 +80,8 @@ pub struct HybridTable {
     /// Switching margin χ of (3.80): a bond is critical when its stretch reaches χ·s0.
     #[serde(default = "default_chi")]
     pub chi: f64,
-    /// Which Ω_w bonds are checked: "all" (every family bond of every Ω_w node) or "near"
-    /// (Ω_w nodes within 2δ of Ω_s).
+    /// Which Ω_w bonds are checked: "all" (every family bond of every Ω_w node), "near"
+    /// (Ω_w nodes within 2δ of Ω_s) or "collocation" (their collocation bonds only).
     #[serde(default)]
     pub check: CheckSet,
     /// Check every this many steps.
@@ -118,9 +118,14 @@ fn default_every() -> u64 {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum CheckSet {
+    /// Every family bond of every Ω_w node.
     #[default]
     All,
+    /// Every family bond of the Ω_w nodes within 2δ of Ω_s.
     Near,
+    /// Only the collocation bonds of the Ω_w nodes within 2δ of Ω_s (cheapest; damage that
+    /// slips past is caught at the next frame and switched with a warning).
+    Collocation,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
