@@ -5,14 +5,17 @@
 //! (`record` for Rerun). The solver core knows nothing of Rerun or user interfaces.
 
 pub mod bench;
+pub mod control;
 pub mod family;
 pub mod frame;
 pub mod grid;
 pub mod integrate;
 pub mod metrics;
+pub mod panel;
 pub mod model;
 pub mod readback;
 pub mod record;
+pub mod replay;
 pub mod runner;
 pub mod scene;
 pub mod scheme;

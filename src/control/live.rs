@@ -1,0 +1,144 @@
+//! A simulation whose time step can change while it runs. `Simulation` keeps one Δt and
+//! computes time as steps × Δt; this wrapper keeps the clock across changes, recomputes the
+//! number of steps left to the scene's end time, and corrects the time in frames and errors.
+
+use crate::frame::Frame;
+use crate::scene::{Duration, Scene, SceneError};
+use crate::sim::{SimError, SimInfo, Simulation, StageTimers, Stepper};
+
+/// A `Stepper` whose Δt can be set between steps.
+pub trait Live: Stepper {
+    fn set_dt(&mut self, dt: f64);
+    fn as_stepper(&mut self) -> &mut dyn Stepper;
+}
+
+/// Builds a live simulation of a scene in its dimension.
+pub fn build(scene: &Scene) -> Result<Box<dyn Live>, SceneError> {
+    Ok(match scene.dim {
+        1 => Box::new(Controlled::new(Simulation::<1>::new(scene)?)),
+        2 => Box::new(Controlled::new(Simulation::<2>::new(scene)?)),
+        _ => Box::new(Controlled::new(Simulation::<3>::new(scene)?)),
+    })
+}
+
+pub struct Controlled<const D: usize> {
+    sim: Simulation<D>,
+    /// Time and step at the last Δt change.
+    time0: f64,
+    step0: u64,
+    total_steps: u64,
+}
+
+impl<const D: usize> Controlled<D> {
+    pub fn new(sim: Simulation<D>) -> Self {
+        let total_steps = sim.total_steps;
+        Controlled {
+            sim,
+            time0: 0.0,
+            step0: 0,
+            total_steps,
+        }
+    }
+}
+
+impl<const D: usize> Live for Controlled<D> {
+    fn set_dt(&mut self, dt: f64) {
+        self.time0 = self.time();
+        self.step0 = self.sim.steps_done();
+        self.sim.dt = dt;
+        if let Duration::End(end) = self.sim.scene.time.duration {
+            let left = ((end - self.time0) / dt - 1e-9).ceil().max(0.0) as u64;
+            self.total_steps = self.step0 + left;
+        }
+    }
+
+    fn as_stepper(&mut self) -> &mut dyn Stepper {
+        self
+    }
+}
+
+impl<const D: usize> Stepper for Controlled<D> {
+    fn step(&mut self) -> Result<(), SimError> {
+        let time = self.time() + self.sim.dt;
+        self.sim.step().map_err(|e| match e {
+            SimError::Unstable {
+                step,
+                max_speed,
+                dt,
+                stable_dt,
+                ..
+            } => SimError::Unstable {
+                step,
+                time,
+                max_speed,
+                dt,
+                stable_dt,
+            },
+        })
+    }
+
+    fn frame(&mut self) -> Frame {
+        let mut frame = self.sim.frame();
+        frame.time = self.time();
+        frame
+    }
+
+    fn info(&self) -> SimInfo {
+        SimInfo {
+            total_steps: self.total_steps,
+            ..self.sim.info()
+        }
+    }
+
+    fn steps_done(&self) -> u64 {
+        self.sim.steps_done()
+    }
+
+    fn time(&self) -> f64 {
+        self.time0 + (self.sim.steps_done() - self.step0) as f64 * self.sim.dt
+    }
+
+    fn timers(&self) -> &StageTimers {
+        self.sim.timers()
+    }
+
+    fn crack_angles(&self) -> Vec<(String, Option<f64>)> {
+        self.sim.crack_angles()
+    }
+
+    fn broken_bonds(&self) -> u64 {
+        self.sim.broken_bonds()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn time_is_kept_across_dt_changes_and_the_end_time_is_kept() {
+        let scene = Scene::load("vibrating-plate", Some("small")).unwrap();
+        let scene = Scene {
+            time: crate::scene::TimeSpec {
+                duration: Duration::End(1e-5),
+                ..scene.time
+            },
+            ..scene
+        };
+        let mut sim = build(&scene).unwrap();
+        let dt0 = sim.info().dt;
+        for _ in 0..10 {
+            sim.step().unwrap();
+        }
+        sim.set_dt(0.5 * dt0);
+        for _ in 0..10 {
+            sim.step().unwrap();
+        }
+        let expected = 10.0 * dt0 + 10.0 * 0.5 * dt0;
+        assert!((sim.time() - expected).abs() < 1e-12 * expected);
+        assert!((sim.frame().time - expected).abs() < 1e-12 * expected);
+        let left = sim.info().total_steps - sim.steps_done();
+        let end = sim.time() + left as f64 * 0.5 * dt0;
+        assert!(end >= 1e-5 * (1.0 - 1e-9) && end < 1e-5 + 0.5 * dt0, "{end}");
+    }
+}

@@ -1,0 +1,275 @@
+//! The control panel's widgets: they render a `ControlState` and turn what the user does into
+//! `Command`s. Nothing here steps a simulation; the caller sends the commands on.
+
+use eframe::egui;
+
+use crate::control::state::ControlState;
+use crate::control::{Command, DtValue};
+
+/// The panel's edit buffers (what the user is typing), refreshed from the state when it moves.
+#[derive(Debug, Clone, Default)]
+pub struct PanelInputs {
+    pub chi: f64,
+    pub dt_text: String,
+    pub dt_override: bool,
+    pub m: f64,
+    pub dx_mm_text: String,
+    pub scheme: String,
+    pub every: u64,
+    pub save_path: String,
+    /// A parse error of the panel's own fields (the state's `message` shows refusals).
+    pub error: Option<String>,
+    /// The state values the buffers were last filled from.
+    seen: Option<(u32, u64, u64, u64, u64, String, u64)>,
+}
+
+/// Schemes offered by the picker (the preset schema's names).
+pub const SCHEMES: &[&str] = &["standard"];
+
+impl PanelInputs {
+    /// Refills the buffers whose state value changed (a command applied, a restart).
+    pub fn sync(&mut self, state: &ControlState) {
+        let d = &state.discretization;
+        let now = (
+            state.run,
+            state.chi.to_bits(),
+            state.dt.to_bits(),
+            d.m.to_bits(),
+            d.dx.to_bits(),
+            d.scheme.clone(),
+            state.every,
+        );
+        if self.seen.as_ref() == Some(&now) {
+            return;
+        }
+        self.chi = state.chi;
+        self.dt_text = format!("{:.4} ns", state.dt * 1e9);
+        self.m = d.m;
+        self.dx_mm_text = format!("{}", d.dx * 1e3);
+        self.scheme = d.scheme.clone();
+        self.every = state.every;
+        if self.save_path.is_empty() {
+            self.save_path = format!("{}.rrd", state.recording_id());
+        }
+        self.seen = Some(now);
+    }
+}
+
+/// Draws the panel; returns the commands the user gave this frame.
+pub fn show(ui: &mut egui::Ui, state: &ControlState, inputs: &mut PanelInputs) -> Vec<Command> {
+    inputs.sync(state);
+    let mut out = Vec::new();
+    ui.heading("peridyn");
+    ui.label(format!(
+        "recording {} — {} nodes, {} bonds",
+        state.recording_id(),
+        state.nodes,
+        state.bonds
+    ));
+    ui.separator();
+    run_controls(ui, state, &mut out);
+    ui.separator();
+    live_parameters(ui, state, inputs, &mut out);
+    ui.separator();
+    rebuild_parameters(ui, state, inputs, &mut out);
+    ui.separator();
+    saving(ui, state, inputs, &mut out);
+    ui.separator();
+    metrics(ui, state);
+    for message in [&inputs.error, &state.message].into_iter().flatten() {
+        ui.colored_label(egui::Color32::from_rgb(220, 80, 60), message);
+    }
+    if !out.is_empty() {
+        inputs.error = None;
+    }
+    out
+}
+
+fn run_controls(ui: &mut egui::Ui, state: &ControlState, out: &mut Vec<Command>) {
+    ui.horizontal(|ui| {
+        if state.running {
+            if ui.button("Pause").clicked() {
+                out.push(Command::Pause);
+            }
+        } else if ui.button("Play").clicked() {
+            out.push(Command::Play);
+        }
+        if ui.button("Step").clicked() {
+            out.push(Command::Step(1));
+        }
+        if ui.button("Reset").clicked() {
+            out.push(Command::Reset);
+        }
+        ui.label(if state.running { "running" } else { "paused" });
+    });
+    let m = &state.metrics;
+    let fraction = if m.total_steps > 0 {
+        m.step as f32 / m.total_steps as f32
+    } else {
+        0.0
+    };
+    ui.add(egui::ProgressBar::new(fraction).text(format!(
+        "step {} / {}   t = {:.3} µs",
+        m.step,
+        m.total_steps,
+        m.time * 1e6
+    )));
+}
+
+fn live_parameters(
+    ui: &mut egui::Ui,
+    state: &ControlState,
+    inputs: &mut PanelInputs,
+    out: &mut Vec<Command>,
+) {
+    egui::Grid::new("live").num_columns(2).show(ui, |ui| {
+        let label = ui.label("χ");
+        let slider = ui
+            .add(egui::Slider::new(&mut inputs.chi, 0.01..=1.0).fixed_decimals(2))
+            .labelled_by(label.id);
+        if (slider.drag_stopped() || (slider.changed() && !slider.dragged()))
+            && inputs.chi != state.chi
+        {
+            out.push(Command::SetChi(inputs.chi));
+        }
+        ui.end_row();
+
+        let label = ui.label("Δt");
+        ui.horizontal(|ui| {
+            let edit = ui
+                .add(egui::TextEdit::singleline(&mut inputs.dt_text).desired_width(110.0))
+                .labelled_by(label.id);
+            ui.checkbox(&mut inputs.dt_override, "above bound");
+            let entered = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+            if ui.button("Apply Δt").clicked() || entered {
+                let text = format!(
+                    "set dt {}{}",
+                    inputs.dt_text.trim(),
+                    if inputs.dt_override { " override" } else { "" }
+                );
+                match Command::parse(&text) {
+                    Ok(c @ Command::SetDt { .. }) => out.push(c),
+                    Ok(_) => {}
+                    Err(e) => inputs.error = Some(format!("Δt not applied: {e}")),
+                }
+            }
+        });
+        ui.end_row();
+        ui.label("");
+        ui.label(format!(
+            "stable bound {:.4} ns (Δt = {:.2}× bound)",
+            state.stable_dt * 1e9,
+            state.dt / state.stable_dt
+        ));
+        ui.end_row();
+        if ui.small_button("Δt = 0.5 × bound").clicked() {
+            out.push(Command::SetDt {
+                value: DtValue::Stable(0.5),
+                allow_unstable: false,
+            });
+        }
+        ui.label("");
+        ui.end_row();
+
+        let label = ui.label("frame every");
+        let every = ui
+            .add(egui::DragValue::new(&mut inputs.every).range(1..=100_000).suffix(" steps"))
+            .labelled_by(label.id);
+        if (every.drag_stopped() || every.lost_focus() || (every.changed() && !every.dragged()))
+            && inputs.every != state.every
+        {
+            out.push(Command::SetEvery(inputs.every));
+        }
+        ui.end_row();
+    });
+}
+
+fn rebuild_parameters(
+    ui: &mut egui::Ui,
+    state: &ControlState,
+    inputs: &mut PanelInputs,
+    out: &mut Vec<Command>,
+) {
+    ui.label("Discretization (applying restarts as a new recording)");
+    egui::Grid::new("rebuild").num_columns(2).show(ui, |ui| {
+        let label = ui.label("m = δ/Δx");
+        ui.add(egui::DragValue::new(&mut inputs.m).range(1.0..=16.0).speed(0.1))
+            .labelled_by(label.id);
+        ui.end_row();
+        let label = ui.label("Δx [mm]");
+        ui.add(egui::TextEdit::singleline(&mut inputs.dx_mm_text).desired_width(80.0))
+            .labelled_by(label.id);
+        ui.end_row();
+        ui.label("scheme");
+        egui::ComboBox::from_id_salt("scheme")
+            .selected_text(inputs.scheme.clone())
+            .show_ui(ui, |ui| {
+                for s in SCHEMES {
+                    ui.selectable_value(&mut inputs.scheme, s.to_string(), *s);
+                }
+            });
+        ui.end_row();
+    });
+    if ui.button("Rebuild").clicked() {
+        let d = &state.discretization;
+        if inputs.m != d.m {
+            out.push(Command::SetHorizonFactor(inputs.m));
+        }
+        match inputs.dx_mm_text.trim().parse::<f64>() {
+            Ok(mm) if mm * 1e-3 != d.dx => out.push(Command::SetSpacing(mm * 1e-3)),
+            Ok(_) => {}
+            Err(_) => {
+                inputs.error = Some(format!(
+                    "Δx not applied: `{}` is not a number of millimetres",
+                    inputs.dx_mm_text
+                ))
+            }
+        }
+        if inputs.scheme != d.scheme {
+            out.push(Command::SetScheme(inputs.scheme.clone()));
+        }
+    }
+}
+
+fn saving(ui: &mut egui::Ui, state: &ControlState, inputs: &mut PanelInputs, out: &mut Vec<Command>) {
+    ui.horizontal(|ui| match &state.saving {
+        Some(path) => {
+            ui.label(format!("saving to {}", path.display()));
+            if ui.button("Stop saving").clicked() {
+                out.push(Command::StopSaving);
+            }
+        }
+        None => {
+            let label = ui.label("save to");
+            ui.add(egui::TextEdit::singleline(&mut inputs.save_path).desired_width(200.0))
+                .labelled_by(label.id);
+            if ui.button("Start saving").clicked() {
+                out.push(Command::StartSaving(inputs.save_path.trim().into()));
+            }
+        }
+    });
+}
+
+fn metrics(ui: &mut egui::Ui, state: &ControlState) {
+    let m = &state.metrics;
+    egui::Grid::new("metrics").num_columns(2).show(ui, |ui| {
+        let rows = [
+            ("steps/s", format!("{:.1}", m.steps_per_second)),
+            ("bond evaluations/s", format!("{:.3e}", m.bond_evaluations_per_second)),
+            ("kinetic energy", format!("{:.4e} J", m.kinetic)),
+            ("strain energy", format!("{:.4e} J", m.strain)),
+            ("total energy", format!("{:.4e} J", m.kinetic + m.strain)),
+            ("damaged nodes (φ ≥ 0.35)", format!("{}", m.damaged_nodes)),
+            ("broken bonds", format!("{}", m.broken_bonds)),
+            (
+                "Ω_s fraction",
+                format!("{:.1} % (standard scheme everywhere)", 100.0 * m.standard_fraction),
+            ),
+        ];
+        for (name, value) in rows {
+            ui.label(name);
+            ui.label(value);
+            ui.end_row();
+        }
+    });
+}

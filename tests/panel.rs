@@ -1,0 +1,191 @@
+//! The control panel's real widgets, driven headless with egui_kittest: clicks, a slider drag
+//! and typed values emit the expected commands, and the panel shows the resulting state and
+//! the refusals.
+
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use peridyn::control::state::Discretization;
+use peridyn::control::{Command, ControlState, DtValue};
+use peridyn::panel::view::{self, PanelInputs};
+use peridyn::sim::SimInfo;
+
+/// What the harness holds: the state the panel shows (commands applied to it as the
+/// simulation thread would) and every command the panel emitted.
+struct Model {
+    state: ControlState,
+    inputs: PanelInputs,
+    emitted: Vec<Command>,
+}
+
+fn model() -> Model {
+    let info = SimInfo {
+        dim: 2,
+        nodes: 20301,
+        bonds: 1_000_000,
+        dt: 1e-7,
+        stable_dt: 2e-7,
+        gershgorin_dt: 1.2e-7,
+        total_steps: 870,
+        frame_every: 20,
+        bytes_per_bond: 14.4,
+    };
+    Model {
+        state: ControlState::new(
+            "test",
+            &info,
+            Discretization {
+                m: 4.0,
+                dx: 1e-3,
+                scheme: "standard".into(),
+            },
+        ),
+        inputs: PanelInputs::default(),
+        emitted: Vec::new(),
+    }
+}
+
+fn harness() -> Harness<'static, Model> {
+    Harness::builder()
+        .with_size(egui::vec2(460.0, 760.0))
+        .build_ui_state(
+            |ui, m: &mut Model| {
+                for command in view::show(ui, &m.state, &mut m.inputs) {
+                    m.emitted.push(command.clone());
+                    let _ = m.state.apply(command);
+                }
+            },
+            model(),
+        )
+}
+
+use eframe::egui;
+
+#[test]
+fn play_pause_step_and_reset_buttons_emit_their_commands() {
+    let mut h = harness();
+    h.run();
+    h.get_by_label("running");
+    h.get_by_label("Pause").click();
+    h.run();
+    assert_eq!(h.state().emitted, [Command::Pause]);
+    h.get_by_label("paused");
+    h.get_by_label("Play").click();
+    h.run();
+    h.get_by_label("Step").click();
+    h.run();
+    h.get_by_label("Reset").click();
+    h.run();
+    assert_eq!(
+        h.state().emitted,
+        [Command::Pause, Command::Play, Command::Step(1), Command::Reset]
+    );
+    assert_eq!(h.state().state.run, 2, "reset starts a new recording");
+    h.get_by_label_contains("test-run2");
+}
+
+#[test]
+fn dragging_the_chi_slider_emits_one_set_chi() {
+    let mut h = harness();
+    h.run();
+    let rect = h.get_by_label("χ").rect();
+    h.drag_at(rect.right_center() - egui::vec2(2.0, 0.0));
+    h.run();
+    h.hover_at(rect.center());
+    h.run();
+    h.drop_at(rect.center());
+    h.run();
+    let emitted = &h.state().emitted;
+    assert_eq!(emitted.len(), 1, "{emitted:?}");
+    let Command::SetChi(chi) = emitted[0] else {
+        panic!("{emitted:?}")
+    };
+    assert!((0.4..0.65).contains(&chi), "dragged to the middle: {chi}");
+    assert_eq!(h.state().state.chi, chi);
+}
+
+#[test]
+fn typing_a_time_step_emits_set_dt_and_a_refusal_is_shown() {
+    let mut h = harness();
+    h.run();
+    let field = h.get_by_label("Δt");
+    field.focus();
+    field.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.run();
+    h.get_by_label("Δt").type_text("150 ns");
+    h.run();
+    h.get_by_label("Apply Δt").click();
+    h.run();
+    assert_eq!(
+        h.state().emitted,
+        [Command::SetDt {
+            value: DtValue::Seconds(1.5e-7),
+            allow_unstable: false
+        }]
+    );
+    assert_eq!(h.state().state.dt, 1.5e-7);
+    h.get_by_label_contains("0.75× bound");
+
+    // Above the bound: emitted, refused by the state, and the refusal is on the panel.
+    h.get_by_label("Δt").focus();
+    h.get_by_label("Δt")
+        .key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.run();
+    h.get_by_label("Δt").type_text("300 ns");
+    h.run();
+    h.get_by_label("Apply Δt").click();
+    h.run();
+    assert_eq!(h.state().emitted.len(), 2);
+    assert_eq!(h.state().state.dt, 1.5e-7, "unchanged");
+    h.get_by_label_contains("stable bound 2.0000e-7 s");
+    h.get_by_label_contains("override");
+
+    // Nonsense is caught by the panel itself.
+    h.get_by_label("Δt").focus();
+    h.get_by_label("Δt")
+        .key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.run();
+    h.get_by_label("Δt").type_text("fast");
+    h.run();
+    h.get_by_label("Apply Δt").click();
+    h.run();
+    assert_eq!(h.state().emitted.len(), 2, "nothing emitted");
+    h.get_by_label_contains("Δt not applied");
+}
+
+#[test]
+fn rebuild_emits_only_the_changed_discretization() {
+    let mut h = harness();
+    h.run();
+    h.get_by_label("Δx [mm]").focus();
+    h.get_by_label("Δx [mm]")
+        .key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.run();
+    h.get_by_label("Δx [mm]").type_text("0.5");
+    h.run();
+    h.get_by_label("Rebuild").click();
+    h.run();
+    assert_eq!(h.state().emitted, [Command::SetSpacing(0.5e-3)]);
+    assert_eq!(h.state().state.run, 2);
+}
+
+#[test]
+fn saving_starts_and_stops() {
+    let mut h = harness();
+    h.run();
+    let path = std::env::temp_dir().join("peridyn-panel-test.rrd");
+    h.get_by_label("save to").focus();
+    h.get_by_label("save to")
+        .key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.run();
+    h.get_by_label("save to").type_text(path.to_str().unwrap());
+    h.run();
+    h.get_by_label("Start saving").click();
+    h.run();
+    h.get_by_label_contains("saving to");
+    h.get_by_label("Stop saving").click();
+    h.run();
+    assert_eq!(
+        h.state().emitted,
+        [Command::StartSaving(path), Command::StopSaving]
+    );
+}
