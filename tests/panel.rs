@@ -189,3 +189,38 @@ fn saving_starts_and_stops() {
         [Command::StartSaving(path), Command::StopSaving]
     );
 }
+
+/// The panel rendered with wgpu (lavapipe on machines without a GPU) and compared with
+/// `tests/snapshots/panel.png`; `UPDATE_SNAPSHOTS=1` rewrites it (scripts/screenshots.sh).
+#[test]
+fn panel_snapshot() {
+    let mut m = model();
+    m.state.metrics.step = 312;
+    m.state.metrics.time = 312.0 * 1e-7;
+    m.state.metrics.steps_per_second = 412.0;
+    m.state.metrics.bond_evaluations_per_second = 4.12e8;
+    m.state.metrics.kinetic = 1.03;
+    m.state.metrics.strain = 0.41;
+    m.state.metrics.damaged_nodes = 187;
+    m.state.metrics.broken_bonds = 2904.0;
+    m.state.apply(Command::SetChi(0.9)).unwrap();
+    m.state
+        .apply(Command::SetDt {
+            value: DtValue::Seconds(3e-7),
+            allow_unstable: false,
+        })
+        .unwrap_err();
+    let mut h = Harness::builder()
+        .wgpu()
+        .with_size(egui::vec2(460.0, 720.0))
+        .build_ui_state(
+            |ui, m: &mut Model| {
+                for command in view::show(ui, &m.state, &mut m.inputs) {
+                    m.emitted.push(command);
+                }
+            },
+            m,
+        );
+    h.run();
+    h.snapshot("panel");
+}

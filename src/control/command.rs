@@ -73,13 +73,6 @@ impl Command {
                 .filter(|v| v.is_finite())
                 .ok_or_else(|| format!("{what}: expected a number, got `{s}`"))
         };
-        let no_more = |n: usize, cmd: Command| -> Result<Command, String> {
-            if words.len() > n {
-                Err(format!("unexpected `{}` after `{}`", rest(n), words[..n].join(" ")))
-            } else {
-                Ok(cmd)
-            }
-        };
         // Rebuild commands accept a trailing `restart` (they always restart).
         let strip_restart = |from: usize| -> Vec<&str> {
             let mut w: Vec<&str> = words.get(from..).unwrap_or_default().to_vec();
@@ -146,12 +139,9 @@ impl Command {
                 "unknown setting `{what}`; allowed: chi, dt, m, dx, scheme, every"
             )),
             [first, ..] => {
-                let known = [
-                    "play", "pause", "step", "reset", "restart", "save", "set",
-                ];
+                let known = ["play", "pause", "step", "reset", "restart", "save", "set"];
                 if known.contains(first) {
-                    no_more(1, Command::Play)
-                        .and(Err(format!("malformed `{text}`; expected one of: {FORMS}")))
+                    Err(format!("malformed `{}`; expected one of: {FORMS}", text.trim()))
                 } else {
                     Err(format!("unknown command `{first}`; expected one of: {FORMS}"))
                 }

@@ -126,6 +126,6 @@ mod tests {
             },
         )
         .unwrap_err();
-        assert!(e.to_string().contains("bonds"), "{e}");
+        assert!(e.to_string().contains("discretization.spacing"), "{e}");
     }
 }

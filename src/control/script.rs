@@ -57,12 +57,13 @@ pub const SCRIPT_COMMANDS: &str =
     "set chi X, set dt VALUE [override], set m X [restart], set dx LENGTH [restart], \
      set scheme NAME [restart], set every K, reset";
 
+/// Time units and how many of them make a second (dividing keeps `20 us` = 2e-5 exactly).
 const TIME_UNITS: &[(&str, f64)] = &[
     ("s", 1.0),
-    ("ms", 1e-3),
-    ("us", 1e-6),
-    ("µs", 1e-6),
-    ("ns", 1e-9),
+    ("ms", 1e3),
+    ("us", 1e6),
+    ("µs", 1e6),
+    ("ns", 1e9),
 ];
 
 /// Reads and parses a script file.
@@ -134,7 +135,7 @@ fn split_trigger(content: &str) -> Result<(Trigger, &str), String> {
             Trigger::Step(value as u64)
         }
         _ => match TIME_UNITS.iter().find(|(u, _)| *u == unit) {
-            Some((_, f)) => Trigger::Time(value * f),
+            Some((_, per_second)) => Trigger::Time(value / per_second),
             None => {
                 let allowed: Vec<&str> = TIME_UNITS.iter().map(|(u, _)| *u).collect();
                 return Err(format!(

@@ -411,9 +411,9 @@ mod tests {
                     value: DtValue::Stable(1.5),
                     allow_unstable: true
                 },
-                |s| s.dt = 3e-8
+                |s| s.dt = 1.5 * 2e-8
             ),
-            Effect::SetDt(3e-8)
+            Effect::SetDt(1.5 * 2e-8)
         );
         assert_eq!(
             only_changes(Command::SetEvery(9), |s| s.every = 9),

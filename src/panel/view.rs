@@ -77,7 +77,7 @@ pub fn show(ui: &mut egui::Ui, state: &ControlState, inputs: &mut PanelInputs) -
     ui.separator();
     metrics(ui, state);
     for message in [&inputs.error, &state.message].into_iter().flatten() {
-        ui.colored_label(egui::Color32::from_rgb(220, 80, 60), message);
+        ui.colored_label(egui::Color32::from_rgb(220, 80, 60), message.as_str());
     }
     if !out.is_empty() {
         inputs.error = None;
