@@ -494,6 +494,12 @@ fn replay(args: ReplayArgs) -> Result<ExitCode, Failure> {
     };
     if args.resimulate {
         let rec = peridyn::readback::read(&args.file).map_err(Failure::BadInput)?;
+        if rec.entities.is_empty() {
+            return Err(Failure::BadInput(format!(
+                "{}: not a Rerun recording (or one without data)",
+                args.file.display()
+            )));
+        }
         let text = rec
             .entity(&format!("/{}", control::runspec::ENTITY))
             .and_then(|e| e.texts.last())

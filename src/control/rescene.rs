@@ -80,6 +80,8 @@ pub fn with_discretization(base: &Scene, choice: &Discretization) -> Result<Scen
     // The preset as the user wrote it stays the recording's preset; the choices are stated
     // in the run's command log.
     scene.preset_text = base.preset_text.clone();
+    // Settings made outside the preset (`--every`) carry over.
+    scene.output_every = base.output_every;
     Ok(scene)
 }
 
