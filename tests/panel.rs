@@ -60,6 +60,16 @@ fn harness() -> Harness<'static, Model> {
 
 use eframe::egui;
 
+/// Replaces the text of the field labelled `label`, as a user would (select all, type).
+fn type_into(h: &mut Harness<'static, Model>, label: &str, text: &str) {
+    h.get_by_label(label).focus();
+    h.run();
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.run();
+    h.get_by_label(label).type_text(text);
+    h.run();
+}
+
 #[test]
 fn play_pause_step_and_reset_buttons_emit_their_commands() {
     let mut h = harness();
@@ -107,45 +117,30 @@ fn dragging_the_chi_slider_emits_one_set_chi() {
 fn typing_a_time_step_emits_set_dt_and_a_refusal_is_shown() {
     let mut h = harness();
     h.run();
-    let field = h.get_by_label("Δt");
-    field.focus();
-    field.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
-    h.run();
-    h.get_by_label("Δt").type_text("150 ns");
-    h.run();
+    type_into(&mut h, "Δt", "150 ns");
     h.get_by_label("Apply Δt").click();
     h.run();
     assert_eq!(
         h.state().emitted,
         [Command::SetDt {
-            value: DtValue::Seconds(1.5e-7),
+            value: DtValue::Seconds(150.0 * 1e-9),
             allow_unstable: false
         }]
     );
-    assert_eq!(h.state().state.dt, 1.5e-7);
+    assert_eq!(h.state().state.dt, 150.0 * 1e-9);
     h.get_by_label_contains("0.75× bound");
 
     // Above the bound: emitted, refused by the state, and the refusal is on the panel.
-    h.get_by_label("Δt").focus();
-    h.get_by_label("Δt")
-        .key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
-    h.run();
-    h.get_by_label("Δt").type_text("300 ns");
-    h.run();
+    type_into(&mut h, "Δt", "300 ns");
     h.get_by_label("Apply Δt").click();
     h.run();
     assert_eq!(h.state().emitted.len(), 2);
-    assert_eq!(h.state().state.dt, 1.5e-7, "unchanged");
+    assert_eq!(h.state().state.dt, 150.0 * 1e-9, "unchanged");
     h.get_by_label_contains("stable bound 2.0000e-7 s");
     h.get_by_label_contains("override");
 
     // Nonsense is caught by the panel itself.
-    h.get_by_label("Δt").focus();
-    h.get_by_label("Δt")
-        .key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
-    h.run();
-    h.get_by_label("Δt").type_text("fast");
-    h.run();
+    type_into(&mut h, "Δt", "fast");
     h.get_by_label("Apply Δt").click();
     h.run();
     assert_eq!(h.state().emitted.len(), 2, "nothing emitted");
@@ -156,12 +151,7 @@ fn typing_a_time_step_emits_set_dt_and_a_refusal_is_shown() {
 fn rebuild_emits_only_the_changed_discretization() {
     let mut h = harness();
     h.run();
-    h.get_by_label("Δx [mm]").focus();
-    h.get_by_label("Δx [mm]")
-        .key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
-    h.run();
-    h.get_by_label("Δx [mm]").type_text("0.5");
-    h.run();
+    type_into(&mut h, "Δx [mm]", "0.5");
     h.get_by_label("Rebuild").click();
     h.run();
     assert_eq!(h.state().emitted, [Command::SetSpacing(0.5e-3)]);
@@ -173,12 +163,7 @@ fn saving_starts_and_stops() {
     let mut h = harness();
     h.run();
     let path = std::env::temp_dir().join("peridyn-panel-test.rrd");
-    h.get_by_label("save to").focus();
-    h.get_by_label("save to")
-        .key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
-    h.run();
-    h.get_by_label("save to").type_text(path.to_str().unwrap());
-    h.run();
+    type_into(&mut h, "save to", path.to_str().unwrap());
     h.get_by_label("Start saving").click();
     h.run();
     h.get_by_label_contains("saving to");
@@ -212,7 +197,7 @@ fn panel_snapshot() {
         .unwrap_err();
     let mut h = Harness::builder()
         .wgpu()
-        .with_size(egui::vec2(460.0, 720.0))
+        .with_size(egui::vec2(460.0, 580.0))
         .build_ui_state(
             |ui, m: &mut Model| {
                 for command in view::show(ui, &m.state, &mut m.inputs) {
