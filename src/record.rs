@@ -49,6 +49,8 @@ enum Message {
     Command(u64, String),
     /// A static text document (replaces the previous one at that entity).
     Document(String, String),
+    /// Start (a file) or stop saving, after everything logged before is delivered.
+    Save(Option<FileSink>),
 }
 
 /// Frames in flight between the solver and the logging thread: the solver waits (instead of
@@ -87,9 +89,10 @@ impl RerunSink {
             .map_err(|e| format!("cannot write to the recording: {e}"))?;
         let (sender, receiver) = bounded(CHANNEL_CAPACITY);
         let radius = (0.5 * scene.spacing) as f32;
+        let save = outlet.save.clone();
         let worker = std::thread::Builder::new()
             .name("rerun-sink".into())
-            .spawn(move || log_loop(stream, receiver, radius))
+            .spawn(move || log_loop(stream, receiver, radius, &save))
             .map_err(|e| format!("cannot start the logging thread: {e}"))?;
         Ok(RerunSink {
             sender: Some(sender),
@@ -102,6 +105,23 @@ impl RerunSink {
         if let Some(s) = &self.sender {
             let _ = s.send(Message::Command(step, text.into()));
         }
+    }
+
+    /// Starts saving to `path` (in order: everything logged before goes out first, and the
+    /// file begins with the recording's header), or stops with `None`.
+    pub fn save(&mut self, path: Option<&std::path::Path>) -> Result<(), String> {
+        let file = match path {
+            Some(p) => Some(
+                FileSink::new(p.to_path_buf())
+                    .map_err(|e| format!("cannot write {}: {e}", p.display()))?,
+            ),
+            None => None,
+        };
+        if let Some(s) = &self.sender {
+            s.send(Message::Save(file))
+                .map_err(|_| "the logging thread has stopped".to_string())?;
+        }
+        Ok(())
     }
 
     /// Logs a static text document (e.g. `control/run`), replacing the previous one.
@@ -237,15 +257,6 @@ impl Outlet {
             .map_err(|e| format!("cannot open the recording: {e}"))
     }
 
-    /// Starts saving everything from now on to `path`, beginning with the current
-    /// recordings' headers (store info and static documents such as the preset).
-    pub fn start_saving(&self, path: &std::path::Path) -> Result<(), String> {
-        let file = FileSink::new(path.to_path_buf())
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-        self.save.start(file);
-        Ok(())
-    }
-
     /// Sends an already-encoded message (a replayed recording) to every destination.
     pub fn send_raw(&self, msg: LogMsg) {
         for sink in &self.sinks {
@@ -281,8 +292,8 @@ impl LogSink for Shared {
     }
 }
 
-/// A file that can be opened and closed while running. It keeps each recording's header
-/// (store info and static chunks) so a file started mid-run is a complete recording.
+/// A file that can be opened and closed while running. It keeps the current recording's
+/// header (store info and static chunks) so a file started mid-run is a complete recording.
 #[derive(Default)]
 struct SaveSlot {
     file: Mutex<Option<FileSink>>,
@@ -322,10 +333,12 @@ impl SaveSlot {
 impl LogSink for SaveSlot {
     fn send(&self, msg: LogMsg) {
         if Self::is_header(&msg) {
-            self.header
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .push(msg.clone());
+            let mut header = self.header.lock().unwrap_or_else(|e| e.into_inner());
+            // Runs are sequential: a new recording's header replaces the previous one.
+            if matches!(msg, LogMsg::SetStoreInfo(_)) {
+                header.clear();
+            }
+            header.push(msg.clone());
         }
         if let Some(file) = self.file.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
             file.send(msg);
@@ -409,6 +422,7 @@ fn log_loop(
     stream: RecordingStream,
     receiver: Receiver<Message>,
     radius: f32,
+    save: &SaveSlot,
 ) -> Result<SinkReport, String> {
     let mut report = SinkReport::default();
     let mut result = Ok(());
@@ -425,6 +439,14 @@ fn log_loop(
             }
             Message::Document(entity, text) => {
                 stream.log_static(entity, &rerun::TextDocument::new(text))
+            }
+            Message::Save(file) => {
+                let _ = stream.flush_with_timeout(Duration::from_secs(30));
+                match file {
+                    Some(file) => save.start(file),
+                    None => save.stop(),
+                }
+                Ok(())
             }
             Message::Text(level, text) => stream.log(
                 "log/events",

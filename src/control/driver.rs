@@ -173,11 +173,8 @@ impl Driver {
                 Ok(())
             }
             Effect::SetEvery(_) => Ok(()),
-            Effect::StartSaving(path) => self.outlet.start_saving(&path),
-            Effect::StopSaving => {
-                self.outlet.stop_saving();
-                Ok(())
-            }
+            Effect::StartSaving(path) => self.save(Some(&path)),
+            Effect::StopSaving => self.save(None),
             Effect::Rebuild => self.rebuild(&before),
         };
         if let Err(e) = result {
@@ -192,6 +189,13 @@ impl Driver {
             self.log_applied(&applied);
         }
         Ok(())
+    }
+
+    fn save(&mut self, path: Option<&std::path::Path>) -> Result<(), String> {
+        match &mut self.sink {
+            Some(sink) => sink.save(path),
+            None => Err("no recording is open".into()),
+        }
     }
 
     fn log_applied(&mut self, applied: &super::state::Applied) {

@@ -1,0 +1,85 @@
+//! The command driver on a real simulation: refused commands (including a rebuild whose scene
+//! cannot be built) leave the run going; saving started mid-run gives a complete recording.
+
+use std::path::PathBuf;
+
+use peridyn::control::runspec::RunSpec;
+use peridyn::control::{Command, Driver};
+use peridyn::readback;
+use peridyn::record::{Outlet, RecordTarget};
+use peridyn::scene::Scene;
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("peridyn-driver-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn driver(file: &std::path::Path) -> Driver {
+    let scene = Scene::load("vibrating-plate", Some("small")).unwrap();
+    let outlet = Outlet::open(&RecordTarget::File(file.to_path_buf())).unwrap();
+    Driver::start(RunSpec::new(&scene, Some(10), None), outlet, "test").unwrap()
+}
+
+fn steps(driver: &mut Driver, n: u64) {
+    for _ in 0..n {
+        driver.step().unwrap();
+    }
+}
+
+#[test]
+fn refused_commands_leave_the_run_going() {
+    let mut d = driver(&temp("refused.rrd"));
+    steps(&mut d, 5);
+    let id = d.state.recording_id();
+    assert!(d.command(Command::SetChi(2.0)).is_err());
+    // Validation passes, building fails (the scene would be far too large): refused too.
+    let err = d.command(Command::SetSpacing(1e-7)).unwrap_err();
+    assert!(err.contains("discretization.spacing"), "{err}");
+    assert_eq!(d.state.recording_id(), id, "no restart");
+    assert_eq!(d.state.discretization.dx, 5e-4, "choice taken back");
+    assert_eq!(d.state.message.as_deref(), Some(err.as_str()));
+    assert!(d.state.running && d.wants_step());
+    steps(&mut d, 5);
+    assert_eq!(d.steps_done(), 10, "the run kept going");
+    assert!(d.state.log.is_empty());
+    d.finish(false, None).unwrap();
+}
+
+#[test]
+fn saving_started_mid_run_is_a_complete_recording() {
+    let main = temp("main.rrd");
+    let saved = temp("saved.rrd");
+    let mut d = driver(&main);
+    steps(&mut d, 25);
+    d.command(Command::StartSaving(saved.clone())).unwrap();
+    steps(&mut d, 30);
+    d.command(Command::StopSaving).unwrap();
+    steps(&mut d, 20);
+    d.finish(false, None).unwrap();
+
+    let rec = readback::read(&saved).unwrap();
+    assert!(
+        rec.entity("/scene/preset").is_some_and(|e| !e.texts.is_empty()),
+        "the header (preset) is in the late file"
+    );
+    let frames: Vec<i64> = rec
+        .entity("/nodes/damage")
+        .unwrap()
+        .points
+        .keys()
+        .copied()
+        .collect();
+    assert_eq!(frames, [30, 40, 50], "frames while saving, and only those");
+    let run = rec.entity("/control/run").unwrap().texts.last().unwrap();
+    assert!(run.contains("save start"), "{run}");
+    let all: Vec<i64> = readback::read(&main)
+        .unwrap()
+        .entity("/nodes/damage")
+        .unwrap()
+        .points
+        .keys()
+        .copied()
+        .collect();
+    assert_eq!(all, (0..=70).step_by(10).collect::<Vec<_>>());
+}
