@@ -398,9 +398,7 @@ fn simulate_scripted(
     args: &RunArgs,
 ) -> Result<RunSummary, Failure> {
     let script = match &args.script {
-        Some(path) => {
-            control::script::load(path).map_err(|e| Failure::BadInput(e.to_string()))?
-        }
+        Some(path) => control::script::load(path).map_err(|e| Failure::BadInput(e.to_string()))?,
         None => Vec::new(),
     };
     if args.every == Some(0) {

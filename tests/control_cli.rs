@@ -29,7 +29,10 @@ fn stdout_line<'a>(out: &'a str, prefix: &str) -> &'a str {
 #[test]
 fn a_bad_script_names_its_file_line_and_the_allowed_values() {
     let cases = [
-        ("at 10 steps set colour red\n", "chi, dt, m, dx, scheme, every"),
+        (
+            "at 10 steps set colour red\n",
+            "chi, dt, m, dx, scheme, every",
+        ),
         ("\nat 10 parsecs set chi 0.9\n", "allowed: steps, s"),
         ("at 10 steps pause\n", "a script may give"),
     ];
@@ -56,7 +59,12 @@ fn a_bad_script_names_its_file_line_and_the_allowed_values() {
         assert!(stderr.contains(needle), "{stderr}");
         assert!(!stderr.contains("panicked"), "{stderr}");
     }
-    let out = peridyn(&["record", "vibrating-plate", "--script", "/no/such/script.txt"]);
+    let out = peridyn(&[
+        "record",
+        "vibrating-plate",
+        "--script",
+        "/no/such/script.txt",
+    ]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("/no/such/script.txt"));
 }
@@ -111,8 +119,18 @@ fn a_scripted_recording_carries_its_commands_and_resimulates_exactly() {
     // Two recordings (one per run); each carries its commands and the whole log so far.
     let recordings = readback::read_each(&original).unwrap();
     assert_eq!(recordings.len(), 2);
-    assert_ne!(recordings[0].0, recordings[1].0, "a restart is a new recording");
-    let commands = |i: usize| recordings[i].1.entity("/control/commands").unwrap().texts.clone();
+    assert_ne!(
+        recordings[0].0, recordings[1].0,
+        "a restart is a new recording"
+    );
+    let commands = |i: usize| {
+        recordings[i]
+            .1
+            .entity("/control/commands")
+            .unwrap()
+            .texts
+            .clone()
+    };
     assert_eq!(
         commands(0),
         [
@@ -124,16 +142,36 @@ fn a_scripted_recording_carries_its_commands_and_resimulates_exactly() {
         "χ fires at the first step at or after 5 µs"
     );
     assert_eq!(commands(1), ["run 2 at 40 steps: set every 7"]);
-    let run_doc = recordings[1].1.entity("/control/run").unwrap().texts.last().unwrap().clone();
-    assert!(run_doc.contains("run 1 at 100 steps: set m 3.0 restart"), "{run_doc}");
-    assert!(run_doc.contains("run 2 at 40 steps: set every 7"), "{run_doc}");
+    let run_doc = recordings[1]
+        .1
+        .entity("/control/run")
+        .unwrap()
+        .texts
+        .last()
+        .unwrap()
+        .clone();
+    assert!(
+        run_doc.contains("run 1 at 100 steps: set m 3.0 restart"),
+        "{run_doc}"
+    );
+    assert!(
+        run_doc.contains("run 2 at 40 steps: set every 7"),
+        "{run_doc}"
+    );
     let scene = peridyn::scene::Scene::load("kalthoff-winkler", Some("small")).unwrap();
     assert!(
         recordings[1].1.entity("/scene/preset").unwrap().texts[0].contains(&scene.preset_text),
         "the preset is stored whole in every run"
     );
     // Frames: every 25 steps until the cadence changed at step 40 of run 2, then every 7.
-    let steps: Vec<i64> = recordings[1].1.entity("/nodes/damage").unwrap().points.keys().copied().collect();
+    let steps: Vec<i64> = recordings[1]
+        .1
+        .entity("/nodes/damage")
+        .unwrap()
+        .points
+        .keys()
+        .copied()
+        .collect();
     assert_eq!(&steps[..3], &[0, 25, 42]);
     let last_steps: i64 = stdout_line(&stdout, "steps: ")
         .split_whitespace()
@@ -153,7 +191,11 @@ fn a_scripted_recording_carries_its_commands_and_resimulates_exactly() {
         "-q",
     ]);
     let stdout2 = String::from_utf8_lossy(&out.stdout).to_string();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert_eq!(stdout_line(&stdout2, "final damage hash: "), hash);
     assert_eq!(stdout_line(&stdout2, "runs: "), "2");
     let (n1, step1, damage1) = final_damage(&original);
@@ -161,7 +203,10 @@ fn a_scripted_recording_carries_its_commands_and_resimulates_exactly() {
     assert_eq!((n1, step1), (n2, step2));
     assert!(damage1.iter().any(|&d| d > 0.0));
     assert!(
-        damage1.iter().zip(&damage2).all(|(a, b)| a.to_bits() == b.to_bits()),
+        damage1
+            .iter()
+            .zip(&damage2)
+            .all(|(a, b)| a.to_bits() == b.to_bits()),
         "the recorded damage fields are identical"
     );
 }

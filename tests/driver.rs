@@ -60,7 +60,8 @@ fn saving_started_mid_run_is_a_complete_recording() {
 
     let rec = readback::read(&saved).unwrap();
     assert!(
-        rec.entity("/scene/preset").is_some_and(|e| !e.texts.is_empty()),
+        rec.entity("/scene/preset")
+            .is_some_and(|e| !e.texts.is_empty()),
         "the header (preset) is in the late file"
     );
     let frames: Vec<i64> = rec

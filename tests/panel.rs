@@ -87,7 +87,12 @@ fn play_pause_step_and_reset_buttons_emit_their_commands() {
     h.run();
     assert_eq!(
         h.state().emitted,
-        [Command::Pause, Command::Play, Command::Step(1), Command::Reset]
+        [
+            Command::Pause,
+            Command::Play,
+            Command::Step(1),
+            Command::Reset
+        ]
     );
     assert_eq!(h.state().state.run, 2, "reset starts a new recording");
     h.get_by_label_contains("test-run2");

@@ -88,7 +88,10 @@ fn served_run_streams_frames_and_outlives_its_client() {
     let stderr = child.stderr.take().unwrap();
     std::thread::spawn(move || {
         use std::io::BufRead;
-        for line in std::io::BufReader::new(stderr).lines().map_while(Result::ok) {
+        for line in std::io::BufReader::new(stderr)
+            .lines()
+            .map_while(Result::ok)
+        {
             let _ = lines.send(line);
         }
     });
@@ -107,7 +110,10 @@ fn served_run_streams_frames_and_outlives_its_client() {
     assert!(steps.len() >= 3, "frames received: {steps:?}");
     assert!(steps.iter().all(|s| s % 10 == 0), "{steps:?}");
     // The client is gone while the run is still going.
-    assert!(!finished(&mut seen), "the run ended before the client left: {seen:?}");
+    assert!(
+        !finished(&mut seen),
+        "the run ended before the client left: {seen:?}"
+    );
 
     // The run goes on to its end, then keeps serving.
     let start = Instant::now();
@@ -143,7 +149,8 @@ fn served_run_streams_frames_and_outlives_its_client() {
     seen.extend(stderr_lines.iter());
     assert_eq!(status.code(), Some(0), "{seen:?}");
     assert!(
-        seen.iter().any(|l| l.contains(&format!("127.0.0.1:{port}/proxy"))),
+        seen.iter()
+            .any(|l| l.contains(&format!("127.0.0.1:{port}/proxy"))),
         "address printed: {seen:?}"
     );
     let rec = peridyn::readback::read(&file).unwrap();

@@ -122,14 +122,18 @@ impl Command {
                 if allow_unstable {
                     w.pop();
                 }
-                let value = match w.as_slice() {
-                    [f, "stable"] => DtValue::Stable(number(f, "dt")?),
-                    [] => return Err("set dt: expected a value, e.g. `set dt 2 ns` or `set dt 0.5 stable`".into()),
-                    _ => DtValue::Seconds(
-                        parse_with_unit(&w.join(" "), TIME_UNITS)
-                            .map_err(|e| format!("dt: {e} (e.g. `2 ns` or `0.5 stable`)"))?,
-                    ),
-                };
+                let value =
+                    match w.as_slice() {
+                        [f, "stable"] => DtValue::Stable(number(f, "dt")?),
+                        [] => return Err(
+                            "set dt: expected a value, e.g. `set dt 2 ns` or `set dt 0.5 stable`"
+                                .into(),
+                        ),
+                        _ => DtValue::Seconds(
+                            parse_with_unit(&w.join(" "), TIME_UNITS)
+                                .map_err(|e| format!("dt: {e} (e.g. `2 ns` or `0.5 stable`)"))?,
+                        ),
+                    };
                 Ok(Command::SetDt {
                     value,
                     allow_unstable,
@@ -141,9 +145,14 @@ impl Command {
             [first, ..] => {
                 let known = ["play", "pause", "step", "reset", "restart", "save", "set"];
                 if known.contains(first) {
-                    Err(format!("malformed `{}`; expected one of: {FORMS}", text.trim()))
+                    Err(format!(
+                        "malformed `{}`; expected one of: {FORMS}",
+                        text.trim()
+                    ))
                 } else {
-                    Err(format!("unknown command `{first}`; expected one of: {FORMS}"))
+                    Err(format!(
+                        "unknown command `{first}`; expected one of: {FORMS}"
+                    ))
                 }
             }
         }

@@ -228,7 +228,11 @@ impl Driver {
     }
 
     /// Ends the session: closes the recording and reports the last run.
-    pub fn finish(mut self, interrupted: bool, error: Option<SimError>) -> Result<RunSummary, String> {
+    pub fn finish(
+        mut self,
+        interrupted: bool,
+        error: Option<SimError>,
+    ) -> Result<RunSummary, String> {
         if interrupted {
             let text = format!("interrupted at step {}", self.sim.steps_done());
             self.message("warn", &text);

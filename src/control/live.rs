@@ -139,6 +139,9 @@ mod tests {
         assert!((sim.frame().time - expected).abs() < 1e-12 * expected);
         let left = sim.info().total_steps - sim.steps_done();
         let end = sim.time() + left as f64 * 0.5 * dt0;
-        assert!(end >= 1e-5 * (1.0 - 1e-9) && end < 1e-5 + 0.5 * dt0, "{end}");
+        assert!(
+            end >= 1e-5 * (1.0 - 1e-9) && end < 1e-5 + 0.5 * dt0,
+            "{end}"
+        );
     }
 }

@@ -100,7 +100,14 @@ mod tests {
             with_discretization(&base, &own).unwrap().horizon,
             base.horizon
         );
-        let m3 = with_discretization(&base, &Discretization { m: 3.0, ..own.clone() }).unwrap();
+        let m3 = with_discretization(
+            &base,
+            &Discretization {
+                m: 3.0,
+                ..own.clone()
+            },
+        )
+        .unwrap();
         assert_eq!(m3.spacing, 1e-3);
         assert!((m3.horizon - 3e-3).abs() < 1e-15);
         assert_eq!(m3.precracks.len(), base.precracks.len());
@@ -113,21 +120,18 @@ mod tests {
         )
         .unwrap();
         assert_eq!(fine.spacing, 5e-4);
-        assert!((fine.horizon - 2e-3).abs() < 1e-15, "m kept: {}", fine.horizon);
+        assert!(
+            (fine.horizon - 2e-3).abs() < 1e-15,
+            "m kept: {}",
+            fine.horizon
+        );
     }
 
     #[test]
     fn a_choice_the_validation_refuses_gives_its_message() {
         let base = Scene::load("kalthoff-winkler", Some("small")).unwrap();
         let own = discretization_of(&base);
-        let e = with_discretization(
-            &base,
-            &Discretization {
-                dx: 1e-6,
-                ..own
-            },
-        )
-        .unwrap_err();
+        let e = with_discretization(&base, &Discretization { dx: 1e-6, ..own }).unwrap_err();
         assert!(e.to_string().contains("discretization.spacing"), "{e}");
     }
 }

@@ -53,8 +53,7 @@ impl std::fmt::Display for ScriptError {
 impl std::error::Error for ScriptError {}
 
 /// Commands a headless script may give (a headless run always plays).
-pub const SCRIPT_COMMANDS: &str =
-    "set chi X, set dt VALUE [override], set m X [restart], set dx LENGTH [restart], \
+pub const SCRIPT_COMMANDS: &str = "set chi X, set dt VALUE [override], set m X [restart], set dx LENGTH [restart], \
      set scheme NAME [restart], set every K, reset";
 
 /// Time units and how many of them make a second (dividing keeps `20 us` = 2e-5 exactly).
@@ -188,7 +187,10 @@ mod tests {
             ("at 2.5 steps set chi 0.9", "whole number"),
             ("at -3 steps set chi 0.9", "≥ 0"),
             ("at 10 steps", "no command"),
-            ("at 10 steps set colour red", "chi, dt, m, dx, scheme, every"),
+            (
+                "at 10 steps set colour red",
+                "chi, dt, m, dx, scheme, every",
+            ),
             ("at 10 steps pause", "set chi X"),
             ("at 10 steps fly", "unknown command"),
         ];

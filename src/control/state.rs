@@ -372,7 +372,10 @@ mod tests {
 
     #[test]
     fn every_command_changes_exactly_what_it_names() {
-        assert_eq!(only_changes(Command::Pause, |s| s.running = false), Effect::Pause);
+        assert_eq!(
+            only_changes(Command::Pause, |s| s.running = false),
+            Effect::Pause
+        );
         let mut paused = state();
         paused.apply(Command::Pause).unwrap();
         assert_eq!(paused.apply(Command::Play), Ok(Effect::Play));
@@ -520,7 +523,10 @@ mod tests {
             (Command::SetEvery(0), "≥ 1"),
             (Command::Step(0), "≥ 1"),
             (Command::StartSaving("a.txt".into()), ".rrd"),
-            (Command::StartSaving("/no/such/dir/a.rrd".into()), "does not exist"),
+            (
+                Command::StartSaving("/no/such/dir/a.rrd".into()),
+                "does not exist",
+            ),
             (Command::StopSaving, "not saving"),
             (Command::SetScheme("nope".into()), "standard"),
         ];
@@ -531,7 +537,11 @@ mod tests {
             assert!(err.contains(needle), "{command}: {err}");
             assert_eq!(fingerprint(&s), before, "{command} changed the state");
             assert!(s.log.is_empty(), "refused commands are not logged");
-            assert_eq!(s.message.as_deref(), Some(err.as_str()), "shown in the panel");
+            assert_eq!(
+                s.message.as_deref(),
+                Some(err.as_str()),
+                "shown in the panel"
+            );
             assert!(s.running, "the simulation keeps running");
         }
     }

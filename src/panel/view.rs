@@ -173,7 +173,11 @@ fn live_parameters(
 
         let label = ui.label("frame every");
         let every = ui
-            .add(egui::DragValue::new(&mut inputs.every).range(1..=100_000).suffix(" steps"))
+            .add(
+                egui::DragValue::new(&mut inputs.every)
+                    .range(1..=100_000)
+                    .suffix(" steps"),
+            )
             .labelled_by(label.id);
         if (every.drag_stopped() || every.lost_focus() || (every.changed() && !every.dragged()))
             && inputs.every != state.every
@@ -193,8 +197,12 @@ fn rebuild_parameters(
     ui.label("Discretization (applying restarts as a new recording)");
     egui::Grid::new("rebuild").num_columns(2).show(ui, |ui| {
         let label = ui.label("m = δ/Δx");
-        ui.add(egui::DragValue::new(&mut inputs.m).range(1.0..=16.0).speed(0.1))
-            .labelled_by(label.id);
+        ui.add(
+            egui::DragValue::new(&mut inputs.m)
+                .range(1.0..=16.0)
+                .speed(0.1),
+        )
+        .labelled_by(label.id);
         ui.end_row();
         let label = ui.label("Δx [mm]");
         ui.add(egui::TextEdit::singleline(&mut inputs.dx_mm_text).desired_width(80.0))
@@ -231,7 +239,12 @@ fn rebuild_parameters(
     }
 }
 
-fn saving(ui: &mut egui::Ui, state: &ControlState, inputs: &mut PanelInputs, out: &mut Vec<Command>) {
+fn saving(
+    ui: &mut egui::Ui,
+    state: &ControlState,
+    inputs: &mut PanelInputs,
+    out: &mut Vec<Command>,
+) {
     ui.horizontal(|ui| match &state.saving {
         Some(path) => {
             ui.label(format!("saving to {}", path.display()));
@@ -255,7 +268,10 @@ fn metrics(ui: &mut egui::Ui, state: &ControlState) {
     egui::Grid::new("metrics").num_columns(2).show(ui, |ui| {
         let rows = [
             ("steps/s", format!("{:.1}", m.steps_per_second)),
-            ("bond evaluations/s", format!("{:.3e}", m.bond_evaluations_per_second)),
+            (
+                "bond evaluations/s",
+                format!("{:.3e}", m.bond_evaluations_per_second),
+            ),
             ("kinetic energy", format!("{:.4e} J", m.kinetic)),
             ("strain energy", format!("{:.4e} J", m.strain)),
             ("total energy", format!("{:.4e} J", m.kinetic + m.strain)),
@@ -263,7 +279,10 @@ fn metrics(ui: &mut egui::Ui, state: &ControlState) {
             ("broken bonds", format!("{}", m.broken_bonds)),
             (
                 "Ω_s fraction",
-                format!("{:.1} % (standard scheme everywhere)", 100.0 * m.standard_fraction),
+                format!(
+                    "{:.1} % (standard scheme everywhere)",
+                    100.0 * m.standard_fraction
+                ),
             ),
         ];
         for (name, value) in rows {
