@@ -84,3 +84,45 @@ fn saving_started_mid_run_is_a_complete_recording() {
         .collect();
     assert_eq!(all, (0..=70).step_by(10).collect::<Vec<_>>());
 }
+
+/// The panel's simulation thread: commands arrive over a channel, the published state follows.
+#[test]
+fn the_worker_thread_applies_panel_commands() {
+    use std::sync::atomic::AtomicBool;
+    use std::sync::{Arc, Mutex};
+    use std::time::{Duration, Instant};
+
+    let d = driver(&temp("worker.rrd"));
+    let shared = Arc::new(Mutex::new(d.state.clone()));
+    let (send, receive) = crossbeam_channel::unbounded();
+    let stop = Arc::new(AtomicBool::new(false));
+    let worker =
+        peridyn::control::worker::spawn(d, receive, shared.clone(), stop.clone()).unwrap();
+    let state = || shared.lock().unwrap().clone();
+    let wait_for = |what: &str, ok: &dyn Fn(&peridyn::control::ControlState) -> bool| {
+        let start = Instant::now();
+        while !ok(&state()) {
+            assert!(start.elapsed() < Duration::from_secs(60), "{what}: {:?}", state());
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    };
+    send.send(Command::Pause).unwrap();
+    wait_for("paused", &|s| !s.running);
+    std::thread::sleep(Duration::from_millis(200));
+    let at = state().metrics.step;
+    std::thread::sleep(Duration::from_millis(200));
+    assert_eq!(state().metrics.step, at, "a paused run does not advance");
+    send.send(Command::Step(1)).unwrap();
+    wait_for("one step", &|s| s.metrics.step == at + 1);
+    send.send(Command::SetChi(1.5)).unwrap();
+    wait_for("refusal shown", &|s| {
+        s.message.as_deref().is_some_and(|m| m.contains("(0, 1]"))
+    });
+    send.send(Command::Play).unwrap();
+    wait_for("ran to the end", &|s| {
+        s.metrics.step == s.metrics.total_steps && s.metrics.total_steps > 0
+    });
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let summary = worker.join().unwrap().unwrap();
+    assert_eq!(summary.steps, summary.info.total_steps);
+}
