@@ -96,13 +96,16 @@ fn the_worker_thread_applies_panel_commands() {
     let shared = Arc::new(Mutex::new(d.state.clone()));
     let (send, receive) = crossbeam_channel::unbounded();
     let stop = Arc::new(AtomicBool::new(false));
-    let worker =
-        peridyn::control::worker::spawn(d, receive, shared.clone(), stop.clone()).unwrap();
+    let worker = peridyn::control::worker::spawn(d, receive, shared.clone(), stop.clone()).unwrap();
     let state = || shared.lock().unwrap().clone();
     let wait_for = |what: &str, ok: &dyn Fn(&peridyn::control::ControlState) -> bool| {
         let start = Instant::now();
         while !ok(&state()) {
-            assert!(start.elapsed() < Duration::from_secs(60), "{what}: {:?}", state());
+            assert!(
+                start.elapsed() < Duration::from_secs(60),
+                "{what}: {:?}",
+                state()
+            );
             std::thread::sleep(Duration::from_millis(10));
         }
     };

@@ -183,3 +183,92 @@ fn an_unreachable_viewer_is_a_clear_error() {
     assert!(stderr.contains("no Rerun viewer is listening"), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
+
+/// `--connect` to a viewer (here another peridyn's gRPC server) that dies mid-run: the run
+/// goes on to its end and the file it saves is complete.
+#[test]
+fn a_connected_run_survives_its_viewer_dying() {
+    let port = free_port();
+    let mut viewer = Command::new(env!("CARGO_BIN_EXE_peridyn"))
+        .args([
+            "run",
+            "vibrating-plate",
+            "--variant",
+            "small",
+            "--serve",
+            &format!("127.0.0.1:{port}"),
+            "-q",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(start.elapsed() < Duration::from_secs(60), "never served");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let file = temp("connected.rrd");
+    let mut run = Command::new(env!("CARGO_BIN_EXE_peridyn"))
+        .args([
+            "run",
+            "kalthoff-winkler",
+            "--variant",
+            "medium",
+            "--connect",
+            &format!("rerun+http://127.0.0.1:{port}/proxy"),
+            "--every",
+            "10",
+            "-q",
+            "-o",
+            file.to_str().unwrap(),
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Let some frames go out, then kill the viewer.
+    let start = Instant::now();
+    while std::fs::metadata(&file).map(|m| m.len()).unwrap_or(0) < 1_000_000 {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no frames written"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    viewer.kill().unwrap();
+    viewer.wait().unwrap();
+    let start = Instant::now();
+    while run.try_wait().unwrap().is_none() {
+        assert!(
+            start.elapsed() < Duration::from_secs(300),
+            "the run hangs after its viewer died"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let out = run.wait_with_output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let info = peridyn::sim::build(
+        &peridyn::scene::Scene::load("kalthoff-winkler", Some("medium")).unwrap(),
+    )
+    .unwrap()
+    .info();
+    let rec = peridyn::readback::read(&file).unwrap();
+    let last = rec
+        .entity("/nodes/damage")
+        .unwrap()
+        .points
+        .keys()
+        .next_back()
+        .copied();
+    assert_eq!(
+        last,
+        Some(info.total_steps as i64),
+        "the file has the whole run"
+    );
+}
