@@ -225,12 +225,17 @@ impl Outlet {
                 (vec![server], file.as_ref())
             }
             RecordTarget::Spawn { file } => {
-                rerun::spawn(&rerun::SpawnOptions::default()).map_err(|e| {
+                let spawned = rerun::spawn(&rerun::SpawnOptions {
+                    wait_for_bind: true,
+                    ..Default::default()
+                })
+                .map_err(|e| {
                     format!(
                         "cannot start a viewer: {e} (install it with `pip install 'rerun-sdk==0.36.*'`)"
                     )
                 })?;
-                (vec![connect(rerun::DEFAULT_CONNECT_URL)?], file.as_ref())
+                let url = format!("rerun+http://127.0.0.1:{}/proxy", spawned.port);
+                (vec![connect(&url)?], file.as_ref())
             }
         };
         if let Some(path) = file {
