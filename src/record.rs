@@ -185,7 +185,9 @@ pub fn recording_id(scene: &Scene) -> String {
 /// stream carries them all. Saving to a file can also start and stop while running.
 #[derive(Clone)]
 pub struct Outlet {
+    /// The destinations given at the start (file, viewer, server).
     sinks: Vec<Arc<dyn LogSink>>,
+    /// A file started and stopped while running.
     save: Arc<SaveSlot>,
 }
 
@@ -241,16 +243,19 @@ impl Outlet {
         if let Some(path) = file {
             sinks.insert(0, file_sink(path)?);
         }
-        let save = Arc::new(SaveSlot::default());
-        sinks.push(save.clone());
-        Ok(Outlet { sinks, save })
+        Ok(Outlet {
+            sinks,
+            save: Arc::new(SaveSlot::default()),
+        })
     }
 
     /// A new recording stream on every destination.
     pub fn stream(&self, recording_id: &str, scene: &Scene) -> Result<RecordingStream, String> {
+        let save: Arc<dyn LogSink> = self.save.clone();
         let sinks: Vec<Box<dyn LogSink>> = self
             .sinks
             .iter()
+            .chain([&save])
             .map(|s| Box::new(Shared(s.clone())) as Box<dyn LogSink>)
             .collect();
         RecordingStreamBuilder::new("peridyn")
@@ -262,7 +267,8 @@ impl Outlet {
             .map_err(|e| format!("cannot open the recording: {e}"))
     }
 
-    /// Sends an already-encoded message (a replayed recording) to every destination.
+    /// Sends an already-encoded message (a replayed recording) to every destination but a
+    /// file started by `save start`.
     pub fn send_raw(&self, msg: LogMsg) {
         for sink in &self.sinks {
             sink.send(msg.clone());

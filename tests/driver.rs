@@ -129,3 +129,27 @@ fn the_worker_thread_applies_panel_commands() {
     let summary = worker.join().unwrap().unwrap();
     assert_eq!(summary.steps, summary.info.total_steps);
 }
+
+#[test]
+fn a_replayed_recording_goes_to_the_session_outlet_beside_the_live_run() {
+    let old = temp("old.rrd");
+    let mut d = driver(&old);
+    steps(&mut d, 20);
+    d.finish(false, None).unwrap();
+
+    let live = temp("live.rrd");
+    let scene = Scene::load("vibrating-plate", Some("small")).unwrap();
+    let outlet = Outlet::open(&RecordTarget::File(live.clone())).unwrap();
+    let mut d = Driver::start(RunSpec::new(&scene, Some(10), None), outlet, "other").unwrap();
+    d.command(Command::Replay(old.clone())).unwrap();
+    assert!(d.state.log.is_empty(), "not part of the run's history");
+    steps(&mut d, 10);
+    d.finish(false, None).unwrap();
+    let ids: Vec<String> = readback::read_each(&live)
+        .unwrap()
+        .into_iter()
+        .map(|(id, _)| id)
+        .collect();
+    assert!(ids.contains(&"other-run1".to_string()), "{ids:?}");
+    assert!(ids.contains(&"test-run1".to_string()), "{ids:?}");
+}

@@ -202,7 +202,7 @@ fn panel_snapshot() {
         .unwrap_err();
     let mut h = Harness::builder()
         .wgpu()
-        .with_size(egui::vec2(460.0, 580.0))
+        .with_size(egui::vec2(460.0, 620.0))
         .build_ui_state(
             |ui, m: &mut Model| {
                 for command in view::show(ui, &m.state, &mut m.inputs) {
@@ -213,4 +213,23 @@ fn panel_snapshot() {
         );
     h.run();
     h.snapshot("panel");
+}
+
+#[test]
+fn the_recordings_of_a_folder_are_listed_and_replayed() {
+    let dir = std::env::temp_dir().join(format!("peridyn-panel-rec-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for name in ["b.rrd", "a.rrd", "notes.txt"] {
+        std::fs::write(dir.join(name), "x").unwrap();
+    }
+    let mut h = harness();
+    h.run();
+    type_into(&mut h, "recordings in", dir.to_str().unwrap());
+    h.get_by_label("List").click();
+    h.run();
+    assert!(h.query_by_label("Replay notes.txt").is_none());
+    h.get_by_label("Replay a.rrd");
+    h.get_by_label("Replay b.rrd").click();
+    h.run();
+    assert_eq!(h.state().emitted, [Command::Replay(dir.join("b.rrd"))]);
 }

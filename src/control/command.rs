@@ -43,13 +43,15 @@ pub enum Command {
     SetEvery(u64),
     StartSaving(PathBuf),
     StopSaving,
+    /// Send a saved recording to the session's viewer, beside the live runs.
+    Replay(PathBuf),
 }
 
 /// The command forms, for error messages.
 pub const FORMS: &str = "play, pause, step [N], reset, set chi X, set dt VALUE [override] \
                          (VALUE: a time like `2 ns` or `0.5 stable`), set m X [restart], \
                          set dx LENGTH [restart], set scheme NAME [restart], set every K, \
-                         save start FILE.rrd, save stop";
+                         save start FILE.rrd, save stop, replay FILE.rrd";
 
 impl Command {
     /// Whether the command rebuilds the discretization (and so starts a new recording).
@@ -94,6 +96,7 @@ impl Command {
                 .map(Command::Step)
                 .ok_or_else(|| format!("step: expected a whole number ≥ 1, got `{n}`")),
             ["save", "stop"] => Ok(Command::StopSaving),
+            ["replay", ..] if words.len() > 1 => Ok(Command::Replay(PathBuf::from(rest(1)))),
             ["save", "start", ..] if words.len() > 2 => {
                 Ok(Command::StartSaving(PathBuf::from(rest(2))))
             }
@@ -143,7 +146,9 @@ impl Command {
                 "unknown setting `{what}`; allowed: chi, dt, m, dx, scheme, every"
             )),
             [first, ..] => {
-                let known = ["play", "pause", "step", "reset", "restart", "save", "set"];
+                let known = [
+                    "play", "pause", "step", "reset", "restart", "save", "set", "replay",
+                ];
                 if known.contains(first) {
                     Err(format!(
                         "malformed `{}`; expected one of: {FORMS}",
@@ -205,6 +210,7 @@ impl fmt::Display for Command {
             Command::SetEvery(k) => write!(f, "set every {k}"),
             Command::StartSaving(p) => write!(f, "save start {}", p.display()),
             Command::StopSaving => write!(f, "save stop"),
+            Command::Replay(p) => write!(f, "replay {}", p.display()),
         }
     }
 }
@@ -263,6 +269,7 @@ mod tests {
             "set every 7",
             "save start a.rrd",
             "save stop",
+            "replay old runs/a.rrd",
         ] {
             let c = Command::parse(text).unwrap();
             assert_eq!(Command::parse(&c.to_string()).unwrap(), c, "{text}");

@@ -175,6 +175,7 @@ impl Driver {
             Effect::SetEvery(_) => Ok(()),
             Effect::StartSaving(path) => self.save(Some(&path)),
             Effect::StopSaving => self.save(None),
+            Effect::Replay(path) => crate::replay::send(&path, &self.outlet).map(|_| ()),
             Effect::Rebuild => self.rebuild(&before),
         };
         if let Err(e) = result {

@@ -98,6 +98,7 @@ pub fn parse(file: &str, text: &str) -> Result<Vec<Timed>, ScriptError> {
                 | Command::Step(_)
                 | Command::StartSaving(_)
                 | Command::StopSaving
+                | Command::Replay(_)
         ) {
             return Err(error(format!(
                 "`{command}` is for the live panel; a script may give: {SCRIPT_COMMANDS}"

@@ -27,6 +27,7 @@ pub enum Effect {
     Rebuild,
     StartSaving(PathBuf),
     StopSaving,
+    Replay(PathBuf),
 }
 
 /// The discretization choices that need a rebuild.
@@ -128,11 +129,14 @@ impl ControlState {
             Ok(effect) => {
                 self.message = None;
                 self.commit(&command, &effect);
-                self.log.push(Applied {
-                    run: self.run_of(&command),
-                    step: self.metrics.step,
-                    command,
-                });
+                // A replay shows an old recording; it is no part of this run's history.
+                if !matches!(command, Command::Replay(_)) {
+                    self.log.push(Applied {
+                        run: self.run_of(&command),
+                        step: self.metrics.step,
+                        command,
+                    });
+                }
                 Ok(effect)
             }
             Err(e) => {
@@ -273,6 +277,12 @@ impl ControlState {
                 }
                 Effect::StopSaving
             }
+            Command::Replay(path) => {
+                if !path.is_file() {
+                    return Err(format!("no recording `{}`", path.display()));
+                }
+                Effect::Replay(path.clone())
+            }
         })
     }
 
@@ -292,7 +302,7 @@ impl ControlState {
             Command::SetEvery(k) => self.every = *k,
             Command::StartSaving(p) => self.saving = Some(p.clone()),
             Command::StopSaving => self.saving = None,
-            Command::Reset => {}
+            Command::Reset | Command::Replay(_) => {}
         }
         if command.rebuilds() {
             self.run += 1;
@@ -447,6 +457,18 @@ mod tests {
                 Some(file.clone())),
             Effect::StartSaving(file.clone())
         );
+        let replayed = std::env::current_exe().unwrap();
+        let mut s = state();
+        let before = fingerprint(&s);
+        assert_eq!(
+            s.apply(Command::Replay(replayed.clone())),
+            Ok(Effect::Replay(replayed))
+        );
+        assert_eq!(fingerprint(&s), before);
+        assert!(
+            s.log.is_empty(),
+            "a replay is not part of the run's history"
+        );
         let mut saving = state();
         saving.apply(Command::StartSaving(file)).unwrap();
         assert_eq!(saving.apply(Command::StopSaving), Ok(Effect::StopSaving));
@@ -529,6 +551,7 @@ mod tests {
             ),
             (Command::StopSaving, "not saving"),
             (Command::SetScheme("nope".into()), "standard"),
+            (Command::Replay("/no/such.rrd".into()), "no recording"),
         ];
         for (command, needle) in refused {
             let mut s = state();

@@ -17,6 +17,9 @@ pub struct PanelInputs {
     pub scheme: String,
     pub every: u64,
     pub save_path: String,
+    /// The folder whose recordings are listed, and the list (refreshed by "List").
+    pub folder: String,
+    pub recordings: Vec<std::path::PathBuf>,
     /// A parse error of the panel's own fields (the state's `message` shows refusals).
     pub error: Option<String>,
     /// The state values the buffers were last filled from.
@@ -74,6 +77,8 @@ pub fn show(ui: &mut egui::Ui, state: &ControlState, inputs: &mut PanelInputs) -
     rebuild_parameters(ui, state, inputs, &mut out);
     ui.separator();
     saving(ui, state, inputs, &mut out);
+    ui.separator();
+    recordings(ui, inputs, &mut out);
     ui.separator();
     metrics(ui, state);
     for message in [&inputs.error, &state.message].into_iter().flatten() {
@@ -261,6 +266,44 @@ fn saving(
             }
         }
     });
+}
+
+fn recordings(ui: &mut egui::Ui, inputs: &mut PanelInputs, out: &mut Vec<Command>) {
+    ui.horizontal(|ui| {
+        let label = ui.label("recordings in");
+        ui.add(egui::TextEdit::singleline(&mut inputs.folder).desired_width(200.0))
+            .labelled_by(label.id);
+        if ui.button("List").clicked() {
+            let folder = if inputs.folder.trim().is_empty() {
+                "."
+            } else {
+                inputs.folder.trim()
+            };
+            match list_recordings(std::path::Path::new(folder)) {
+                Ok(list) => inputs.recordings = list,
+                Err(e) => inputs.error = Some(format!("cannot list `{folder}`: {e}")),
+            }
+        }
+    });
+    for path in &inputs.recordings {
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default();
+        if ui.button(format!("Replay {name}")).clicked() {
+            out.push(Command::Replay(path.clone()));
+        }
+    }
+}
+
+/// The `.rrd` files of a folder, sorted by name.
+pub fn list_recordings(folder: &std::path::Path) -> std::io::Result<Vec<std::path::PathBuf>> {
+    let mut list: Vec<_> = std::fs::read_dir(folder)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "rrd") && p.is_file())
+        .collect();
+    list.sort();
+    Ok(list)
 }
 
 fn metrics(ui: &mut egui::Ui, state: &ControlState) {
