@@ -153,3 +153,53 @@ fn a_replayed_recording_goes_to_the_session_outlet_beside_the_live_run() {
     assert!(ids.contains(&"other-run1".to_string()), "{ids:?}");
     assert!(ids.contains(&"test-run1".to_string()), "{ids:?}");
 }
+
+#[test]
+fn loading_another_preset_starts_a_new_session() {
+    let file = temp("load.rrd");
+    let mut d = driver(&file);
+    steps(&mut d, 5);
+    d.command(Command::SetChi(0.8)).unwrap();
+    let err = d
+        .command(Command::Load {
+            preset: "kalthoff-winkler".into(),
+            variant: Some("huge".into()),
+        })
+        .unwrap_err();
+    assert!(err.contains("small"), "the variants are named: {err}");
+    assert_eq!(d.steps_done(), 5, "the current run goes on");
+    d.command(Command::Load {
+        preset: "kalthoff-winkler".into(),
+        variant: Some("small".into()),
+    })
+    .unwrap();
+    assert_eq!(d.state.nodes, 20301);
+    assert_eq!(d.state.run, 1);
+    assert!(d.state.log.is_empty(), "a new session with its own history");
+    assert!(
+        d.state
+            .recording_id()
+            .starts_with("kalthoff-winkler-small-")
+    );
+    steps(&mut d, 3);
+    d.finish(false, None).unwrap();
+    let recordings = readback::read_each(&file).unwrap();
+    assert_eq!(recordings.len(), 2);
+    let doc = recordings[1]
+        .1
+        .entity("/control/run")
+        .unwrap()
+        .texts
+        .last()
+        .unwrap();
+    let spec = RunSpec::from_text(doc).unwrap();
+    assert_eq!(spec.variant.as_deref(), Some("small"));
+    assert!(spec.commands.is_empty(), "{doc}");
+    assert!(spec.preset.contains("kalthoff-winkler"));
+    let first = recordings[0].1.entity("/control/commands").unwrap();
+    assert_eq!(
+        first.texts,
+        ["run 1 at 5 steps: set chi 0.8"],
+        "logged once"
+    );
+}

@@ -202,7 +202,7 @@ fn panel_snapshot() {
         .unwrap_err();
     let mut h = Harness::builder()
         .wgpu()
-        .with_size(egui::vec2(460.0, 620.0))
+        .with_size(egui::vec2(460.0, 680.0))
         .build_ui_state(
             |ui, m: &mut Model| {
                 for command in view::show(ui, &m.state, &mut m.inputs) {
@@ -232,4 +232,23 @@ fn the_recordings_of_a_folder_are_listed_and_replayed() {
     h.get_by_label("Replay b.rrd").click();
     h.run();
     assert_eq!(h.state().emitted, [Command::Replay(dir.join("b.rrd"))]);
+}
+
+#[test]
+fn picking_a_preset_and_variant_emits_load() {
+    let mut h = harness();
+    h.run();
+    h.get_by_label("vibrating-plate").click();
+    h.run();
+    h.get_by_label("small").click();
+    h.run();
+    h.get_by_label("Load").click();
+    h.run();
+    assert_eq!(
+        h.state().emitted,
+        [Command::Load {
+            preset: "vibrating-plate".into(),
+            variant: Some("small".into())
+        }]
+    );
 }

@@ -45,13 +45,19 @@ pub enum Command {
     StopSaving,
     /// Send a saved recording to the session's viewer, beside the live runs.
     Replay(PathBuf),
+    /// Start a new session on another preset (built-in name or file) and variant.
+    Load {
+        preset: String,
+        variant: Option<String>,
+    },
 }
 
 /// The command forms, for error messages.
 pub const FORMS: &str = "play, pause, step [N], reset, set chi X, set dt VALUE [override] \
                          (VALUE: a time like `2 ns` or `0.5 stable`), set m X [restart], \
                          set dx LENGTH [restart], set scheme NAME [restart], set every K, \
-                         save start FILE.rrd, save stop, replay FILE.rrd";
+                         save start FILE.rrd, save stop, replay FILE.rrd, \
+                         load PRESET [VARIANT]";
 
 impl Command {
     /// Whether the command rebuilds the discretization (and so starts a new recording).
@@ -97,6 +103,14 @@ impl Command {
                 .ok_or_else(|| format!("step: expected a whole number ≥ 1, got `{n}`")),
             ["save", "stop"] => Ok(Command::StopSaving),
             ["replay", ..] if words.len() > 1 => Ok(Command::Replay(PathBuf::from(rest(1)))),
+            ["load", preset] => Ok(Command::Load {
+                preset: preset.to_string(),
+                variant: None,
+            }),
+            ["load", preset, variant] => Ok(Command::Load {
+                preset: preset.to_string(),
+                variant: Some(variant.to_string()),
+            }),
             ["save", "start", ..] if words.len() > 2 => {
                 Ok(Command::StartSaving(PathBuf::from(rest(2))))
             }
@@ -147,7 +161,7 @@ impl Command {
             )),
             [first, ..] => {
                 let known = [
-                    "play", "pause", "step", "reset", "restart", "save", "set", "replay",
+                    "play", "pause", "step", "reset", "restart", "save", "set", "replay", "load",
                 ];
                 if known.contains(first) {
                     Err(format!(
@@ -211,6 +225,10 @@ impl fmt::Display for Command {
             Command::StartSaving(p) => write!(f, "save start {}", p.display()),
             Command::StopSaving => write!(f, "save stop"),
             Command::Replay(p) => write!(f, "replay {}", p.display()),
+            Command::Load { preset, variant } => match variant {
+                Some(v) => write!(f, "load {preset} {v}"),
+                None => write!(f, "load {preset}"),
+            },
         }
     }
 }
@@ -270,6 +288,8 @@ mod tests {
             "save start a.rrd",
             "save stop",
             "replay old runs/a.rrd",
+            "load kalthoff-winkler small",
+            "load presets/x.toml",
         ] {
             let c = Command::parse(text).unwrap();
             assert_eq!(Command::parse(&c.to_string()).unwrap(), c, "{text}");

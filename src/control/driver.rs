@@ -160,7 +160,12 @@ impl Driver {
                 return Err(msg);
             }
         };
-        let applied = self.state.log.last().cloned();
+        // The command, if the state logged it (replays and loads are not logged).
+        let applied = if self.state.log.len() > before.log.len() {
+            self.state.log.last().cloned()
+        } else {
+            None
+        };
         let result = match effect {
             Effect::Recorded | Effect::Play | Effect::Pause => Ok(()),
             Effect::Step(n) => {
@@ -176,6 +181,7 @@ impl Driver {
             Effect::StartSaving(path) => self.save(Some(&path)),
             Effect::StopSaving => self.save(None),
             Effect::Replay(path) => crate::replay::send(&path, &self.outlet).map(|_| ()),
+            Effect::Load { preset, variant } => self.load(&preset, variant.as_deref()),
             Effect::Rebuild => self.rebuild(&before),
         };
         if let Err(e) = result {
@@ -205,6 +211,32 @@ impl Driver {
             sink.command(applied.step, &runspec::line(applied));
             sink.document(runspec::ENTITY, &doc);
         }
+    }
+
+    /// A new session on another preset: built first; only if that works is the current run
+    /// closed. The new session's recordings describe only it (its preset, its commands).
+    fn load(&mut self, preset: &str, variant: Option<&str>) -> Result<(), String> {
+        let scene = Scene::load(preset, variant).map_err(|e| e.to_string())?;
+        let spec = RunSpec::new(&scene, self.spec.every, self.spec.steps);
+        let scene = spec.scene().map_err(|e| e.to_string())?;
+        let sim = live::build(&scene).map_err(|e| e.to_string())?;
+        if let Some(sink) = self.sink.take() {
+            sink.finish()?;
+        }
+        let saving = self.state.saving.clone();
+        let running = self.state.running;
+        self.state = ControlState::new(
+            crate::record::recording_id(&scene),
+            &sim.info(),
+            rescene::discretization_of(&scene),
+        );
+        self.state.saving = saving;
+        self.state.running = running;
+        self.sim = sim;
+        self.pending = 0;
+        self.spec = spec;
+        self.base = scene.clone();
+        self.open_run(&scene)
     }
 
     /// Builds the new configuration first; only if that works is the current run closed.

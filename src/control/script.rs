@@ -99,6 +99,7 @@ pub fn parse(file: &str, text: &str) -> Result<Vec<Timed>, ScriptError> {
                 | Command::StartSaving(_)
                 | Command::StopSaving
                 | Command::Replay(_)
+                | Command::Load { .. }
         ) {
             return Err(error(format!(
                 "`{command}` is for the live panel; a script may give: {SCRIPT_COMMANDS}"

@@ -28,6 +28,11 @@ pub enum Effect {
     StartSaving(PathBuf),
     StopSaving,
     Replay(PathBuf),
+    /// Start a new session on this preset and variant (a new `ControlState`).
+    Load {
+        preset: String,
+        variant: Option<String>,
+    },
 }
 
 /// The discretization choices that need a rebuild.
@@ -129,8 +134,9 @@ impl ControlState {
             Ok(effect) => {
                 self.message = None;
                 self.commit(&command, &effect);
-                // A replay shows an old recording; it is no part of this run's history.
-                if !matches!(command, Command::Replay(_)) {
+                // A replay shows an old recording and a load starts a new session: neither
+                // is part of this session's history.
+                if !matches!(command, Command::Replay(_) | Command::Load { .. }) {
                     self.log.push(Applied {
                         run: self.run_of(&command),
                         step: self.metrics.step,
@@ -283,6 +289,15 @@ impl ControlState {
                 }
                 Effect::Replay(path.clone())
             }
+            Command::Load { preset, variant } => {
+                if preset.is_empty() {
+                    return Err("which preset?".into());
+                }
+                Effect::Load {
+                    preset: preset.clone(),
+                    variant: variant.clone(),
+                }
+            }
         })
     }
 
@@ -302,7 +317,7 @@ impl ControlState {
             Command::SetEvery(k) => self.every = *k,
             Command::StartSaving(p) => self.saving = Some(p.clone()),
             Command::StopSaving => self.saving = None,
-            Command::Reset | Command::Replay(_) => {}
+            Command::Reset | Command::Replay(_) | Command::Load { .. } => {}
         }
         if command.rebuilds() {
             self.run += 1;

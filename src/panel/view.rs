@@ -5,6 +5,7 @@ use eframe::egui;
 
 use crate::control::state::ControlState;
 use crate::control::{Command, DtValue};
+use crate::scene::builtin;
 
 /// The panel's edit buffers (what the user is typing), refreshed from the state when it moves.
 #[derive(Debug, Clone, Default)]
@@ -17,6 +18,9 @@ pub struct PanelInputs {
     pub scheme: String,
     pub every: u64,
     pub save_path: String,
+    /// The preset and variant picked for `Load` ("" for the preset's base).
+    pub preset: String,
+    pub variant: String,
     /// The folder whose recordings are listed, and the list (refreshed by "List").
     pub folder: String,
     pub recordings: Vec<std::path::PathBuf>,
@@ -69,6 +73,7 @@ pub fn show(ui: &mut egui::Ui, state: &ControlState, inputs: &mut PanelInputs) -
         state.nodes,
         state.bonds
     ));
+    preset_picker(ui, inputs, &mut out);
     ui.separator();
     run_controls(ui, state, &mut out);
     ui.separator();
@@ -88,6 +93,50 @@ pub fn show(ui: &mut egui::Ui, state: &ControlState, inputs: &mut PanelInputs) -
         inputs.error = None;
     }
     out
+}
+
+/// The variants of a built-in preset, from its text.
+fn variants_of(preset: &str) -> Vec<String> {
+    builtin::text(preset)
+        .and_then(|t| toml::from_str::<crate::scene::Preset>(t).ok())
+        .map(|p| p.variants.keys().cloned().collect())
+        .unwrap_or_default()
+}
+
+fn preset_picker(ui: &mut egui::Ui, inputs: &mut PanelInputs, out: &mut Vec<Command>) {
+    if inputs.preset.is_empty() {
+        inputs.preset = builtin::DEFAULT.0.to_string();
+        inputs.variant = builtin::DEFAULT.1.to_string();
+    }
+    ui.horizontal_wrapped(|ui| {
+        ui.label("preset");
+        for name in builtin::names() {
+            if ui.selectable_label(inputs.preset == name, name).clicked() {
+                inputs.preset = name.to_string();
+                inputs.variant.clear();
+            }
+        }
+    });
+    ui.horizontal_wrapped(|ui| {
+        ui.label("variant");
+        if ui
+            .selectable_label(inputs.variant.is_empty(), "base")
+            .clicked()
+        {
+            inputs.variant.clear();
+        }
+        for v in variants_of(&inputs.preset) {
+            if ui.selectable_label(inputs.variant == v, &v).clicked() {
+                inputs.variant = v;
+            }
+        }
+        if ui.button("Load").clicked() {
+            out.push(Command::Load {
+                preset: inputs.preset.clone(),
+                variant: (!inputs.variant.is_empty()).then(|| inputs.variant.clone()),
+            });
+        }
+    });
 }
 
 fn run_controls(ui: &mut egui::Ui, state: &ControlState, out: &mut Vec<Command>) {
