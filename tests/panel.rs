@@ -18,17 +18,15 @@ struct Model {
 }
 
 fn model() -> Model {
-    let info = SimInfo {
-        dim: 2,
-        nodes: 20301,
-        bonds: 1_000_000,
-        dt: 1e-7,
-        stable_dt: 2e-7,
-        gershgorin_dt: 1.2e-7,
-        total_steps: 870,
-        frame_every: 20,
-        bytes_per_bond: 14.4,
-    };
+    // A real simulation's facts with round numbers (no literal: `SimInfo` grows fields).
+    let scene = peridyn::scene::Scene::load("vibrating-plate", Some("small")).unwrap();
+    let mut info: SimInfo = peridyn::sim::build(&scene).unwrap().info();
+    info.nodes = 20301;
+    info.bonds = 1_000_000;
+    info.dt = 1e-7;
+    info.stable_dt = 2e-7;
+    info.total_steps = 870;
+    info.frame_every = 20;
     Model {
         state: ControlState::new(
             "test",

@@ -12,7 +12,25 @@ pub trait Live: Stepper {
     fn as_stepper(&mut self) -> &mut dyn Stepper;
 }
 
-/// Builds a live simulation of a scene in its dimension.
+/// A simulation whose time step can be set from outside: the one field `Controlled` needs.
+/// Implement it for every simulation type `sim::build` can return, and add its arm to `build`.
+pub trait TimeStepped: Stepper {
+    fn dt_mut(&mut self) -> &mut f64;
+    /// The scene's duration (an end time is kept when Δt changes; a step count is not).
+    fn duration(&self) -> Duration;
+}
+
+impl<const D: usize> TimeStepped for Simulation<D> {
+    fn dt_mut(&mut self) -> &mut f64 {
+        &mut self.dt
+    }
+
+    fn duration(&self) -> Duration {
+        self.scene.time.duration
+    }
+}
+
+/// Builds a live simulation of a scene in its dimension (the same dispatch as `sim::build`).
 pub fn build(scene: &Scene) -> Result<Box<dyn Live>, SceneError> {
     Ok(match scene.dim {
         1 => Box::new(Controlled::new(Simulation::<1>::new(scene)?)),
@@ -21,32 +39,36 @@ pub fn build(scene: &Scene) -> Result<Box<dyn Live>, SceneError> {
     })
 }
 
-pub struct Controlled<const D: usize> {
-    sim: Simulation<D>,
+pub struct Controlled<S> {
+    sim: S,
     /// Time and step at the last Δt change.
     time0: f64,
     step0: u64,
     total_steps: u64,
+    /// The current Δt (kept here: `info()` may cost more than a field read).
+    dt: f64,
 }
 
-impl<const D: usize> Controlled<D> {
-    pub fn new(sim: Simulation<D>) -> Self {
-        let total_steps = sim.total_steps;
+impl<S: TimeStepped> Controlled<S> {
+    pub fn new(sim: S) -> Self {
+        let info = sim.info();
         Controlled {
             sim,
             time0: 0.0,
             step0: 0,
-            total_steps,
+            total_steps: info.total_steps,
+            dt: info.dt,
         }
     }
 }
 
-impl<const D: usize> Live for Controlled<D> {
+impl<S: TimeStepped + 'static> Live for Controlled<S> {
     fn set_dt(&mut self, dt: f64) {
         self.time0 = self.time();
         self.step0 = self.sim.steps_done();
-        self.sim.dt = dt;
-        if let Duration::End(end) = self.sim.scene.time.duration {
+        *self.sim.dt_mut() = dt;
+        self.dt = dt;
+        if let Duration::End(end) = self.sim.duration() {
             let left = ((end - self.time0) / dt - 1e-9).ceil().max(0.0) as u64;
             self.total_steps = self.step0 + left;
         }
@@ -57,23 +79,16 @@ impl<const D: usize> Live for Controlled<D> {
     }
 }
 
-impl<const D: usize> Stepper for Controlled<D> {
+impl<S: TimeStepped> Stepper for Controlled<S> {
     fn step(&mut self) -> Result<(), SimError> {
-        let time = self.time() + self.sim.dt;
-        self.sim.step().map_err(|e| match e {
-            SimError::Unstable {
-                step,
-                max_speed,
-                dt,
-                stable_dt,
-                ..
-            } => SimError::Unstable {
-                step,
-                time,
-                max_speed,
-                dt,
-                stable_dt,
-            },
+        let time = self.time() + self.dt;
+        self.sim.step().map_err(|mut e| {
+            // The simulation's own clock is steps × its current Δt: give the true time.
+            #[allow(irrefutable_let_patterns)]
+            if let SimError::Unstable { time: t, .. } = &mut e {
+                *t = time;
+            }
+            e
         })
     }
 
@@ -95,7 +110,7 @@ impl<const D: usize> Stepper for Controlled<D> {
     }
 
     fn time(&self) -> f64 {
-        self.time0 + (self.sim.steps_done() - self.step0) as f64 * self.sim.dt
+        self.time0 + (self.sim.steps_done() - self.step0) as f64 * self.dt
     }
 
     fn timers(&self) -> &StageTimers {

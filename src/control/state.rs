@@ -350,18 +350,17 @@ fn check_rrd_path(path: &Path) -> Result<(), String> {
 mod tests {
     use super::*;
 
+    /// A real simulation's facts with round numbers (no literal: `SimInfo` grows fields).
     fn info() -> SimInfo {
-        SimInfo {
-            dim: 2,
-            nodes: 100,
-            bonds: 2000,
-            dt: 1e-8,
-            stable_dt: 2e-8,
-            gershgorin_dt: 1.5e-8,
-            total_steps: 50,
-            frame_every: 5,
-            bytes_per_bond: 14.0,
-        }
+        let scene = crate::scene::Scene::load("vibrating-plate", Some("small")).unwrap();
+        let mut info = crate::sim::build(&scene).unwrap().info();
+        info.nodes = 100;
+        info.bonds = 2000;
+        info.dt = 1e-8;
+        info.stable_dt = 2e-8;
+        info.total_steps = 50;
+        info.frame_every = 5;
+        info
     }
 
     fn state() -> ControlState {
