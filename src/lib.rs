@@ -6,14 +6,17 @@
 
 pub mod adapt;
 pub mod bench;
+pub mod control;
 pub mod family;
 pub mod frame;
 pub mod grid;
 pub mod integrate;
 pub mod metrics;
 pub mod model;
+pub mod panel;
 pub mod readback;
 pub mod record;
+pub mod replay;
 pub mod report;
 pub mod runner;
 pub mod scalar;

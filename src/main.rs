@@ -11,7 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use peridyn::record::{RecordTarget, RerunSink};
 use peridyn::runner::{self, RunSummary};
 use peridyn::scene::{Physics, Scene, SchemeKind, builtin};
-use peridyn::{bench, report, sim};
+use peridyn::{bench, control, report, sim};
 
 #[derive(Parser)]
 #[command(
@@ -84,6 +84,10 @@ enum Command {
         #[arg(short, long, default_value = "sweep")]
         out: PathBuf,
     },
+    /// Open the live control panel beside a Rerun viewer (spawned, or remote with --connect).
+    Gui(GuiArgs),
+    /// Send a saved recording to a viewer, or re-run it from its stored preset and commands.
+    Replay(ReplayArgs),
     /// Throughput benchmark on the pmb-block-3d preset (single- and all-thread).
     Bench {
         /// Steps per measurement (default: the preset's 100).
@@ -125,6 +129,10 @@ struct RunArgs {
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
+    /// Timed commands to apply, one per line: `at 20 us set chi 0.9`,
+    /// `at 2000 steps set m 3 restart` (see README).
+    #[arg(long)]
+    script: Option<PathBuf>,
 }
 
 /// Exit codes: 0 success, 1 runtime failure (I/O, viewer), 2 bad input, 3 unstable run,
@@ -144,6 +152,7 @@ fn main() -> ExitCode {
                 every: None,
                 steps: None,
                 quiet: false,
+                script: None,
             },
         }
     });
@@ -278,6 +287,8 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
             }
             Ok(ExitCode::SUCCESS)
         }
+        Command::Replay(args) => replay(args),
+        Command::Gui(args) => gui(args),
         Command::Bench {
             steps,
             variant,
@@ -322,6 +333,9 @@ fn exit_code(summary: &RunSummary) -> ExitCode {
 }
 
 fn simulate(scene: &Scene, target: RecordTarget, args: &RunArgs) -> Result<RunSummary, Failure> {
+    if args.script.is_some() {
+        return simulate_scripted(scene, target, args);
+    }
     let serving = matches!(target, RecordTarget::Serve { .. });
     let mut scene = scene.clone();
     if let Some(k) = args.every {
@@ -334,6 +348,10 @@ fn simulate(scene: &Scene, target: RecordTarget, args: &RunArgs) -> Result<RunSu
     let info = sim.info();
     eprintln!("{}", describe(&scene, &info, args.steps));
     let mut sink = RerunSink::start(target, &scene, &info).map_err(Failure::Runtime)?;
+    sink.document(
+        control::runspec::ENTITY,
+        &control::runspec::RunSpec::new(&scene, args.every, args.steps).to_text(),
+    );
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = stop.clone();
@@ -478,4 +496,266 @@ fn print_summary(s: &RunSummary, frames_written: u64) {
             None => println!("crack angle {name}: no crack found"),
         }
     }
+}
+
+#[derive(Args)]
+struct ReplayArgs {
+    /// A recording made by peridyn.
+    file: PathBuf,
+    /// Re-run the simulation from the preset and command log stored in the recording.
+    #[arg(long)]
+    resimulate: bool,
+    /// With --resimulate: save the new recording here (default: FILE-resim.rrd).
+    #[arg(short, long, requires = "resimulate")]
+    output: Option<PathBuf>,
+    /// Send to a running viewer (default URL rerun+http://127.0.0.1:9876/proxy).
+    #[arg(long, num_args = 0..=1, default_missing_value = "rerun+http://127.0.0.1:9876/proxy", conflicts_with_all = ["serve", "spawn"])]
+    connect: Option<String>,
+    /// Host a gRPC stream that viewers connect to (default 0.0.0.0:9876); serves until Ctrl-C.
+    #[arg(long, num_args = 0..=1, default_missing_value = "0.0.0.0:9876", conflicts_with = "spawn")]
+    serve: Option<String>,
+    /// Start a local `rerun` viewer.
+    #[arg(long)]
+    spawn: bool,
+    /// No progress bar (with --resimulate).
+    #[arg(long, short)]
+    quiet: bool,
+}
+
+/// Ctrl-C raises the flag; a second Ctrl-C exits at once.
+fn stop_flag() -> Arc<AtomicBool> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let _ = ctrlc::set_handler(move || {
+        if flag.swap(true, Ordering::Relaxed) {
+            std::process::exit(130);
+        }
+    });
+    stop
+}
+
+fn wait_while_serving(stop: &AtomicBool) {
+    eprintln!("still serving the recording — press Ctrl-C to stop");
+    while !stop.load(Ordering::Relaxed) {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+}
+
+/// A run driven by a command script: commands at their time, restarts as new recordings.
+fn simulate_scripted(
+    scene: &Scene,
+    target: RecordTarget,
+    args: &RunArgs,
+) -> Result<RunSummary, Failure> {
+    let script = match &args.script {
+        Some(path) => control::script::load(path).map_err(|e| Failure::BadInput(e.to_string()))?,
+        None => Vec::new(),
+    };
+    if args.every == Some(0) {
+        return Err(Failure::BadInput("--every must be ≥ 1".into()));
+    }
+    let spec = control::runspec::RunSpec::new(scene, args.every, args.steps);
+    run_spec(spec, &script, target, args.quiet)
+}
+
+fn run_spec(
+    spec: control::runspec::RunSpec,
+    script: &[control::script::Timed],
+    target: RecordTarget,
+    quiet: bool,
+) -> Result<RunSummary, Failure> {
+    let serving = matches!(target, RecordTarget::Serve { .. });
+    let scene = spec.scene().map_err(|e| Failure::BadInput(e.to_string()))?;
+    let outlet = peridyn::record::Outlet::open(&target).map_err(Failure::Runtime)?;
+    let session = peridyn::record::recording_id(&scene);
+    let driver = control::Driver::start(spec, outlet, &session).map_err(Failure::BadInput)?;
+    eprintln!(
+        "{}: {} nodes, {} bonds, Δt = {:.3e} s (stable bound {:.3e} s), {} steps, {} scripted commands",
+        scene.name,
+        driver.state.nodes,
+        driver.state.bonds,
+        driver.state.dt,
+        driver.state.stable_dt,
+        driver.total_steps(),
+        script.len()
+    );
+    let stop = stop_flag();
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(driver.total_steps())
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} steps  {per_sec}  {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut progress = |n: u64, total: u64| {
+        if n.is_multiple_of(16) || n == total {
+            bar.set_length(total);
+            bar.set_position(n);
+        }
+    };
+    let outcome = control::driver::run_script(driver, script, &stop, &mut progress)
+        .map_err(Failure::Runtime)?;
+    bar.finish_and_clear();
+    for (line, why) in &outcome.refused {
+        eprintln!("warning: script line {line}: {why}");
+    }
+    if !outcome.unfired.is_empty() {
+        eprintln!(
+            "warning: script lines {:?} never fired (the run ended first)",
+            outcome.unfired
+        );
+    }
+    let summary = outcome.summary;
+    if serving && !stop.load(Ordering::Relaxed) {
+        wait_while_serving(&stop);
+    }
+    print_summary(&summary, summary.frames);
+    println!("runs: {}", outcome.runs);
+    if let Some(f) = &summary.last_frame
+        && let Some(d) = f.fields.iter().find(|f| f.name == "damage")
+    {
+        let hash = control::driver::field_hash(d.values.iter().map(|v| v.to_bits()));
+        println!("final damage hash: {hash:016x}");
+    }
+    if let Some(e) = &summary.error {
+        eprintln!("error: {e}");
+    }
+    if summary.interrupted {
+        eprintln!("interrupted: the recording holds every frame logged before the signal");
+    }
+    Ok(summary)
+}
+
+fn replay(args: ReplayArgs) -> Result<ExitCode, Failure> {
+    let viewer = |file: Option<PathBuf>| {
+        if let Some(url) = args.connect.clone() {
+            Some(RecordTarget::Connect { url, file })
+        } else if let Some(addr) = args.serve.clone() {
+            Some(RecordTarget::Serve { addr, file })
+        } else if args.spawn {
+            Some(RecordTarget::Spawn { file })
+        } else {
+            None
+        }
+    };
+    if args.resimulate {
+        let rec = peridyn::readback::read(&args.file).map_err(Failure::BadInput)?;
+        if rec.entities.is_empty() {
+            return Err(Failure::BadInput(format!(
+                "{}: not a Rerun recording (or one without data)",
+                args.file.display()
+            )));
+        }
+        let text = rec
+            .entity(&format!("/{}", control::runspec::ENTITY))
+            .and_then(|e| e.texts.last())
+            .ok_or_else(|| {
+                Failure::BadInput(format!(
+                    "{}: no `{}` document; only recordings made by peridyn can be re-run",
+                    args.file.display(),
+                    control::runspec::ENTITY
+                ))
+            })?;
+        let spec = control::runspec::RunSpec::from_text(text)
+            .map_err(|e| Failure::BadInput(format!("{}: {e}", args.file.display())))?;
+        let script = spec
+            .script()
+            .map_err(|e| Failure::BadInput(format!("{}: {e}", args.file.display())))?;
+        let output = args.output.clone().unwrap_or_else(|| {
+            let stem = args
+                .file
+                .file_stem()
+                .map(|s| s.to_string_lossy().to_string())
+                .unwrap_or_else(|| "replay".into());
+            args.file.with_file_name(format!("{stem}-resim.rrd"))
+        });
+        let target = viewer(Some(output.clone())).unwrap_or(RecordTarget::File(output.clone()));
+        let summary = run_spec(spec, &script, target, args.quiet)?;
+        println!("recording: {}", output.display());
+        return Ok(exit_code(&summary));
+    }
+    let target = viewer(None).unwrap_or(RecordTarget::Connect {
+        url: "rerun+http://127.0.0.1:9876/proxy".into(),
+        file: None,
+    });
+    let serving = matches!(target, RecordTarget::Serve { .. });
+    if !args.file.is_file() {
+        return Err(Failure::BadInput(format!(
+            "{}: no such recording",
+            args.file.display()
+        )));
+    }
+    let outlet = peridyn::record::Outlet::open(&target).map_err(Failure::Runtime)?;
+    let sent = peridyn::replay::send(&args.file, &outlet).map_err(Failure::Runtime)?;
+    println!("replayed {sent} messages from {}", args.file.display());
+    if serving {
+        wait_while_serving(&stop_flag());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+#[derive(Args)]
+struct GuiArgs {
+    /// A built-in preset name or a preset file (default: kalthoff-winkler).
+    preset: Option<String>,
+    /// Preset variant (default with the default preset: small).
+    #[arg(long)]
+    variant: Option<String>,
+    /// Stream to a running (possibly remote) viewer instead of spawning one.
+    #[arg(long, conflicts_with = "serve")]
+    connect: Option<String>,
+    /// Host a gRPC stream that remote viewers connect to, instead of spawning a viewer.
+    #[arg(long)]
+    serve: Option<String>,
+    /// Also save everything to this file.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+}
+
+fn gui(args: GuiArgs) -> Result<ExitCode, Failure> {
+    let (preset, variant) = match args.preset {
+        Some(p) => (p, args.variant),
+        None => {
+            let (p, v) = builtin::DEFAULT;
+            (p.to_string(), args.variant.or(Some(v.to_string())))
+        }
+    };
+    let scene = load(&SceneArgs {
+        preset,
+        variant,
+        set: Vec::new(),
+    })?;
+    let target = if let Some(url) = args.connect {
+        RecordTarget::Connect {
+            url,
+            file: args.output,
+        }
+    } else if let Some(addr) = args.serve {
+        RecordTarget::Serve {
+            addr,
+            file: args.output,
+        }
+    } else {
+        RecordTarget::Spawn { file: args.output }
+    };
+    let outlet = peridyn::record::Outlet::open(&target).map_err(Failure::Runtime)?;
+    let spec = control::runspec::RunSpec::new(&scene, None, None);
+    let session = peridyn::record::recording_id(&scene);
+    let driver = control::Driver::start(spec, outlet, &session).map_err(Failure::BadInput)?;
+    let shared = Arc::new(std::sync::Mutex::new(driver.state.clone()));
+    let (sender, receiver) = crossbeam_channel::unbounded();
+    let stop = Arc::new(AtomicBool::new(false));
+    let worker = control::worker::spawn(driver, receiver, shared.clone(), stop.clone())
+        .map_err(|e| Failure::Runtime(format!("cannot start the simulation thread: {e}")))?;
+    let shown = peridyn::panel::app::run(shared, sender);
+    stop.store(true, Ordering::Relaxed);
+    let summary = worker
+        .join()
+        .map_err(|_| Failure::Runtime("the simulation thread panicked".into()))?
+        .map_err(Failure::Runtime)?;
+    shown.map_err(Failure::Runtime)?;
+    print_summary(&summary, summary.frames);
+    Ok(ExitCode::SUCCESS)
 }

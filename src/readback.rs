@@ -32,9 +32,25 @@ impl Recording {
     }
 }
 
-/// Decodes every chunk of a recording. A file cut short (no footer, truncated last message)
-/// still yields everything before the cut.
+/// Decodes every chunk of a file, all its recordings merged. A file cut short (no footer,
+/// truncated last message) still yields everything before the cut.
 pub fn read(path: &Path) -> Result<Recording, String> {
+    let mut merged = Recording::default();
+    for (_, rec) in read_each(path)? {
+        for (name, content) in rec.entities {
+            let entry = merged.entities.entry(name).or_default();
+            entry.points.extend(content.points);
+            entry.values.extend(content.values);
+            entry.scalars.extend(content.scalars);
+            entry.texts.extend(content.texts);
+        }
+    }
+    Ok(merged)
+}
+
+/// Decodes every recording of a file separately, as `(recording id, content)` in the order
+/// they first appear (a session that restarted holds one recording per run).
+pub fn read_each(path: &Path) -> Result<Vec<(String, Recording)>, String> {
     let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let decoder = DecoderApp::decode_eager(BufReader::new(file))
         .map_err(|e| format!("{}: not a Rerun recording: {e}", path.display()))?;
@@ -44,7 +60,7 @@ pub fn read(path: &Path) -> Result<Recording, String> {
     let text: ComponentIdentifier = rerun::TextDocument::descriptor_text().component;
     let log_text: ComponentIdentifier = rerun::TextLog::descriptor_text().component;
     let scalar: ComponentIdentifier = rerun::Scalars::descriptor_scalars().component;
-    let mut out = Recording::default();
+    let mut out: Vec<(String, Recording)> = Vec::new();
     for msg in decoder {
         let msg = msg.map_err(|e| format!("{}: {e}", path.display()))?;
         let LogMsg::ArrowMsg(store, arrow) = &msg else {
@@ -55,7 +71,15 @@ pub fn read(path: &Path) -> Result<Recording, String> {
         }
         let chunk = Chunk::from_arrow_msg(arrow).map_err(|e| e.to_string())?;
         let name = chunk.entity_path().to_string();
-        let entry = out.entities.entry(name.clone()).or_default();
+        let id = store.recording_id().to_string();
+        let index = match out.iter().position(|(r, _)| *r == id) {
+            Some(i) => i,
+            None => {
+                out.push((id, Recording::default()));
+                out.len() - 1
+            }
+        };
+        let entry = out[index].1.entities.entry(name.clone()).or_default();
         let field = name.rsplit('/').next().unwrap_or_default().to_string();
         let field_id = ComponentIdentifier::try_new(field.as_str()).ok();
         for id in chunk.components_identifiers() {

@@ -7,12 +7,14 @@
 //! Time lines: `step` (sequence) and `sim_time` (duration).
 
 use std::path::PathBuf;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
 use crossbeam_channel::{Receiver, Sender, bounded};
 use rerun::external::arrow::array::{ArrayRef, Float32Array};
+use rerun::log::LogMsg;
+use rerun::sink::{FileSink, LogSink};
 use rerun::{AsComponents, ComponentIdentifier, RecordingStream, RecordingStreamBuilder};
 
 use crate::frame::Frame;
@@ -43,6 +45,12 @@ pub enum RecordTarget {
 enum Message {
     Frame(Box<Frame>),
     Text(String, String),
+    /// A command applied at a step: logged to `control/commands` on the `step` time line.
+    Command(u64, String),
+    /// A static text document (replaces the previous one at that entity).
+    Document(String, String),
+    /// Start (a file) or stop saving, after everything logged before is delivered.
+    Save(Option<FileSink>),
 }
 
 /// Frames in flight between the solver and the logging thread: the solver waits (instead of
@@ -64,19 +72,63 @@ pub struct RerunSink {
 
 impl RerunSink {
     pub fn start(target: RecordTarget, scene: &Scene, info: &SimInfo) -> Result<Self, String> {
-        let stream = open_stream(&target, scene)?;
+        let outlet = Outlet::open(&target)?;
+        Self::start_in(&outlet, &recording_id(scene), scene, info)
+    }
+
+    /// Starts a recording with this id in an outlet shared by several recordings (runs that
+    /// restart with new settings sit side by side in one viewer or one file).
+    pub fn start_in(
+        outlet: &Outlet,
+        recording_id: &str,
+        scene: &Scene,
+        info: &SimInfo,
+    ) -> Result<Self, String> {
+        let stream = outlet.stream(recording_id, scene)?;
         log_scene(&stream, scene, info)
             .map_err(|e| format!("cannot write to the recording: {e}"))?;
         let (sender, receiver) = bounded(CHANNEL_CAPACITY);
         let radius = (0.5 * scene.spacing) as f32;
+        let save = outlet.save.clone();
         let worker = std::thread::Builder::new()
             .name("rerun-sink".into())
-            .spawn(move || log_loop(stream, receiver, radius))
+            .spawn(move || log_loop(stream, receiver, radius, &save))
             .map_err(|e| format!("cannot start the logging thread: {e}"))?;
         Ok(RerunSink {
             sender: Some(sender),
             worker: Some(worker),
         })
+    }
+
+    /// Logs a command applied at `step` to `control/commands`.
+    pub fn command(&mut self, step: u64, text: &str) {
+        if let Some(s) = &self.sender {
+            let _ = s.send(Message::Command(step, text.into()));
+        }
+    }
+
+    /// Starts saving to `path` (in order: everything logged before goes out first, and the
+    /// file begins with the recording's header), or stops with `None`.
+    pub fn save(&mut self, path: Option<&std::path::Path>) -> Result<(), String> {
+        let file = match path {
+            Some(p) => Some(
+                FileSink::new(p.to_path_buf())
+                    .map_err(|e| format!("cannot write {}: {e}", p.display()))?,
+            ),
+            None => None,
+        };
+        if let Some(s) = &self.sender {
+            s.send(Message::Save(file))
+                .map_err(|_| "the logging thread has stopped".to_string())?;
+        }
+        Ok(())
+    }
+
+    /// Logs a static text document (e.g. `control/run`), replacing the previous one.
+    pub fn document(&mut self, entity: &str, text: &str) {
+        if let Some(s) = &self.sender {
+            let _ = s.send(Message::Document(entity.into(), text.into()));
+        }
     }
 
     /// Logs everything still queued, closes the recording (writing the file's footer) and
@@ -116,7 +168,7 @@ impl FrameSink for RerunSink {
     }
 }
 
-fn recording_id(scene: &Scene) -> String {
+pub fn recording_id(scene: &Scene) -> String {
     let nanos = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_nanos())
@@ -128,61 +180,195 @@ fn recording_id(scene: &Scene) -> String {
     )
 }
 
-fn open_stream(target: &RecordTarget, scene: &Scene) -> Result<RecordingStream, String> {
-    use rerun::sink::{FileSink, GrpcSink};
-    let builder = || {
-        RecordingStreamBuilder::new("peridyn")
-            .recording_id(recording_id(scene))
-            .recording_name(scene.name.clone())
-            .send_properties(true)
-            .enabled(true)
-    };
-    let file_sink = |path: &PathBuf| {
-        FileSink::new(path.clone()).map_err(|e| format!("cannot write {}: {e}", path.display()))
-    };
-    let result = match target {
-        RecordTarget::File(path) => builder().set_sinks((file_sink(path)?,)),
-        RecordTarget::Connect { url, file } => {
+/// The destinations of a session's recordings, opened once and shared by every recording
+/// (every run) of the session: one file holds them all, one viewer connection or one served
+/// stream carries them all. Saving to a file can also start and stop while running.
+#[derive(Clone)]
+pub struct Outlet {
+    /// The destinations given at the start (file, viewer, server).
+    sinks: Vec<Arc<dyn LogSink>>,
+    /// A file started and stopped while running.
+    save: Arc<SaveSlot>,
+}
+
+impl Outlet {
+    pub fn open(target: &RecordTarget) -> Result<Outlet, String> {
+        use rerun::sink::GrpcSink;
+        let file_sink = |path: &PathBuf| -> Result<Arc<dyn LogSink>, String> {
+            Ok(Arc::new(FileSink::new(path.clone()).map_err(|e| {
+                format!("cannot write {}: {e}", path.display())
+            })?))
+        };
+        let connect = |url: &str| -> Result<Arc<dyn LogSink>, String> {
             check_reachable(url)?;
             let uri = url
                 .parse::<rerun::external::re_uri::ProxyUri>()
                 .map_err(|e| {
                     format!("bad viewer URL `{url}`: {e} (expected rerun+http://HOST:PORT/proxy)")
                 })?;
-            match file {
-                Some(path) => builder().set_sinks((file_sink(path)?, GrpcSink::new(uri))),
-                None => builder().set_sinks((GrpcSink::new(uri),)),
+            Ok(Arc::new(GrpcSink::new(uri)))
+        };
+        let (mut sinks, file) = match target {
+            RecordTarget::File(path) => (vec![], Some(path)),
+            RecordTarget::Connect { url, file } => (vec![connect(url)?], file.as_ref()),
+            RecordTarget::Serve { addr, file } => {
+                let (ip, port) = split_addr(addr)?;
+                let server: Arc<dyn LogSink> = Arc::new(
+                    rerun::grpc_server::GrpcServerSink::new(
+                        &ip,
+                        port,
+                        rerun::ServerOptions::default(),
+                    )
+                    .map_err(|e| format!("cannot serve on `{addr}`: {e}"))?,
+                );
+                eprintln!(
+                    "serving: connect a viewer with `rerun --connect rerun+http://127.0.0.1:{port}/proxy` (or this machine's address)"
+                );
+                (vec![server], file.as_ref())
             }
-        }
-        RecordTarget::Serve { addr, file } => {
-            let (ip, port) = split_addr(addr)?;
-            let server =
-                rerun::grpc_server::GrpcServerSink::new(&ip, port, rerun::ServerOptions::default())
-                    .map_err(|e| format!("bad address `{addr}`: {e}"))?;
-            eprintln!(
-                "serving: connect a viewer with `rerun --connect rerun+http://127.0.0.1:{port}/proxy` (or this machine's address)"
-            );
-            match file {
-                Some(path) => builder().set_sinks((file_sink(path)?, server)),
-                None => builder().set_sinks((server,)),
+            RecordTarget::Spawn { file } => {
+                let spawned = rerun::spawn(&rerun::SpawnOptions {
+                    wait_for_bind: true,
+                    ..Default::default()
+                })
+                .map_err(|e| {
+                    format!(
+                        "cannot start a viewer: {e} (install it with `pip install 'rerun-sdk==0.36.*'`)"
+                    )
+                })?;
+                let url = format!("rerun+http://127.0.0.1:{}/proxy", spawned.port);
+                (vec![connect(&url)?], file.as_ref())
             }
+        };
+        if let Some(path) = file {
+            sinks.insert(0, file_sink(path)?);
         }
-        RecordTarget::Spawn { file } => {
-            let stream = builder().spawn().map_err(|e| {
-                format!(
-                    "cannot start a viewer: {e} (install it with `pip install 'rerun-sdk==0.36.*'`)"
-                )
-            })?;
-            if let Some(path) = file {
-                let url = rerun::DEFAULT_CONNECT_URL
-                    .parse::<rerun::external::re_uri::ProxyUri>()
-                    .map_err(|e| e.to_string())?;
-                stream.set_sinks((file_sink(path)?, GrpcSink::new(url)));
+        Ok(Outlet {
+            sinks,
+            save: Arc::new(SaveSlot::default()),
+        })
+    }
+
+    /// A new recording stream on every destination.
+    pub fn stream(&self, recording_id: &str, scene: &Scene) -> Result<RecordingStream, String> {
+        let save: Arc<dyn LogSink> = self.save.clone();
+        let sinks: Vec<Box<dyn LogSink>> = self
+            .sinks
+            .iter()
+            .chain([&save])
+            .map(|s| Box::new(Shared(s.clone())) as Box<dyn LogSink>)
+            .collect();
+        RecordingStreamBuilder::new("peridyn")
+            .recording_id(recording_id)
+            .recording_name(scene.name.clone())
+            .send_properties(true)
+            .enabled(true)
+            .set_sinks(sinks)
+            .map_err(|e| format!("cannot open the recording: {e}"))
+    }
+
+    /// Sends an already-encoded message (a replayed recording) to every destination but a
+    /// file started by `save start`.
+    pub fn send_raw(&self, msg: LogMsg) {
+        for sink in &self.sinks {
+            sink.send(msg.clone());
+        }
+    }
+
+    /// Waits until every destination has taken what was sent.
+    pub fn flush(&self, timeout: Duration) -> Result<(), String> {
+        for sink in &self.sinks {
+            sink.flush_blocking(timeout)
+                .map_err(|e| format!("cannot deliver the recording: {e}"))?;
+        }
+        Ok(())
+    }
+
+    /// Stops saving and completes the file (footer written).
+    pub fn stop_saving(&self) {
+        self.save.stop();
+    }
+}
+
+/// One sink shared by several recording streams.
+struct Shared(Arc<dyn LogSink>);
+
+impl LogSink for Shared {
+    fn send(&self, msg: LogMsg) {
+        self.0.send(msg);
+    }
+
+    fn flush_blocking(&self, timeout: Duration) -> Result<(), rerun::sink::SinkFlushError> {
+        self.0.flush_blocking(timeout)
+    }
+}
+
+/// A file that can be opened and closed while running. It keeps the current recording's
+/// header (store info and static chunks) so a file started mid-run is a complete recording.
+#[derive(Default)]
+struct SaveSlot {
+    file: Mutex<Option<FileSink>>,
+    header: Mutex<Vec<LogMsg>>,
+}
+
+/// Static chunks above this size are not kept for late files (they are not headers).
+const HEADER_CHUNK_LIMIT: usize = 1 << 20;
+
+impl SaveSlot {
+    fn start(&self, file: FileSink) {
+        for msg in self.header.lock().unwrap_or_else(|e| e.into_inner()).iter() {
+            file.send(msg.clone());
+        }
+        *self.file.lock().unwrap_or_else(|e| e.into_inner()) = Some(file);
+    }
+
+    fn stop(&self) {
+        let file = self.file.lock().unwrap_or_else(|e| e.into_inner()).take();
+        if let Some(file) = file {
+            let _ = file.flush_blocking(Duration::from_secs(30));
+        }
+    }
+
+    fn is_header(msg: &LogMsg) -> bool {
+        match msg {
+            LogMsg::SetStoreInfo(_) => true,
+            LogMsg::ArrowMsg(_, arrow) => {
+                arrow.batch.get_array_memory_size() < HEADER_CHUNK_LIMIT
+                    && rerun::log::Chunk::from_arrow_msg(arrow).is_ok_and(|c| c.is_static())
             }
-            Ok(stream)
+            _ => false,
         }
-    };
-    result.map_err(|e| format!("cannot open the recording: {e}"))
+    }
+}
+
+impl LogSink for SaveSlot {
+    fn send(&self, msg: LogMsg) {
+        if Self::is_header(&msg) {
+            let mut header = self.header.lock().unwrap_or_else(|e| e.into_inner());
+            // Runs are sequential: a new recording's header replaces the previous one.
+            if matches!(msg, LogMsg::SetStoreInfo(_)) {
+                header.clear();
+            }
+            header.push(msg.clone());
+        }
+        if let Some(file) = self.file.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
+            file.send(msg);
+        }
+    }
+
+    fn flush_blocking(&self, timeout: Duration) -> Result<(), rerun::sink::SinkFlushError> {
+        match self.file.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
+            Some(file) => file.flush_blocking(timeout).map_err(|e| match e {
+                rerun::external::re_log_encoding::FileFlushError::Failed { message } => {
+                    rerun::sink::SinkFlushError::Failed { message }
+                }
+                rerun::external::re_log_encoding::FileFlushError::Timeout => {
+                    rerun::sink::SinkFlushError::Timeout
+                }
+            }),
+            None => Ok(()),
+        }
+    }
 }
 
 fn split_addr(addr: &str) -> Result<(String, u16), String> {
@@ -247,6 +433,7 @@ fn log_loop(
     stream: RecordingStream,
     receiver: Receiver<Message>,
     radius: f32,
+    save: &SaveSlot,
 ) -> Result<SinkReport, String> {
     let mut report = SinkReport::default();
     let mut result = Ok(());
@@ -256,6 +443,21 @@ fn log_loop(
             Message::Frame(frame) => {
                 report.frames += 1;
                 log_frame(&stream, &frame, radius)
+            }
+            Message::Command(step, text) => {
+                stream.set_time_sequence("step", step as i64);
+                stream.log("control/commands", &rerun::TextLog::new(text))
+            }
+            Message::Document(entity, text) => {
+                stream.log_static(entity, &rerun::TextDocument::new(text))
+            }
+            Message::Save(file) => {
+                let _ = stream.flush_with_timeout(Duration::from_secs(30));
+                match file {
+                    Some(file) => save.start(file),
+                    None => save.stop(),
+                }
+                Ok(())
             }
             Message::Text(level, text) => stream.log(
                 "log/events",

@@ -46,6 +46,37 @@ pub struct RunSummary {
 }
 
 impl RunSummary {
+    /// The summary of `sim` as it stands after a run.
+    pub fn of(
+        sim: &dyn Stepper,
+        frames: u64,
+        wall_seconds: f64,
+        frame_seconds: f64,
+        interrupted: bool,
+        error: Option<SimError>,
+        last_frame: Option<Frame>,
+    ) -> Self {
+        RunSummary {
+            crack_angles: sim.crack_angles(),
+            broken_bonds: sim.broken_bonds(),
+            relative_error: sim.relative_error(),
+            stages: sim
+                .timers()
+                .named()
+                .iter()
+                .map(|(n, d)| (*n, d.as_secs_f64()))
+                .collect(),
+            steps: sim.steps_done(),
+            info: sim.info(),
+            frames,
+            wall_seconds,
+            frame_seconds,
+            interrupted,
+            error,
+            last_frame,
+        }
+    }
+
     pub fn steps_per_second(&self) -> f64 {
         self.steps as f64 / self.wall_seconds.max(1e-12)
     }
@@ -101,23 +132,13 @@ pub fn run(
         }
         progress(n, total);
     }
-    RunSummary {
-        crack_angles: sim.crack_angles(),
-        broken_bonds: sim.broken_bonds(),
-        relative_error: sim.relative_error(),
-        stages: sim
-            .timers()
-            .named()
-            .iter()
-            .map(|(n, d)| (*n, d.as_secs_f64()))
-            .collect(),
-        steps: sim.steps_done(),
-        info,
+    RunSummary::of(
+        sim,
         frames,
-        wall_seconds: start.elapsed().as_secs_f64(),
+        start.elapsed().as_secs_f64(),
         frame_seconds,
         interrupted,
         error,
         last_frame,
-    }
+    )
 }

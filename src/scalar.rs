@@ -251,6 +251,15 @@ impl<const D: usize> ScalarSimulation<D> {
         })
     }
 
+    /// The time step, settable between steps (live control).
+    pub fn dt_mut(&mut self) -> &mut f64 {
+        &mut self.dt
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
     /// The current field, one value per node.
     pub fn field(&self) -> &[f64] {
         &self.field

@@ -27,6 +27,8 @@ pub struct Scene {
     pub source: String,
     /// The preset file's text, as given (variants included).
     pub preset_text: String,
+    /// `KEY=VALUE` overrides applied after the variant (`--set`), in order.
+    pub overrides: Vec<String>,
     pub dim: usize,
     pub solid: Solid,
     pub spacing: f64,
@@ -218,7 +220,9 @@ impl Scene {
     ) -> Result<Scene, SceneError> {
         let (file, text) = Scene::read(name_or_path)?;
         let table = override_table(&file, overrides)?;
-        Scene::from_text_with(&file, &text, variant, &table)
+        let mut scene = Scene::from_text_with(&file, &text, variant, &table)?;
+        scene.overrides = overrides.to_vec();
+        Ok(scene)
     }
 
     /// The preset text of a built-in name or a file, and the name to report it under.

@@ -247,6 +247,7 @@ pub(super) fn validate(
         variant: variant.map(str::to_string),
         source: ctx.file.to_string(),
         preset_text: text.to_string(),
+        overrides: Vec::new(),
         dim,
         solid,
         spacing,

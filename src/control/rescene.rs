@@ -1,0 +1,154 @@
+//! The scene of a run: the preset as given, with the discretization the commands chose. The
+//! choices are merged into the preset text (into the chosen variant's table) and the result
+//! goes through the full validation again (units, sizes, memory), so a bad choice is refused
+//! with the same messages as a bad preset.
+
+use crate::scene::{Scene, SceneError};
+
+use super::state::Discretization;
+
+/// The discretization a scene was built with (m = δ/Δx; the scheme by its preset name).
+pub fn discretization_of(scene: &Scene) -> Discretization {
+    let scheme = toml::from_str::<toml::Table>(&scene.preset_text)
+        .ok()
+        .and_then(|t| {
+            let base = t
+                .get("discretization")
+                .and_then(|d| d.get("scheme"))
+                .and_then(|s| s.as_str().map(String::from));
+            let variant = scene.variant.as_ref().and_then(|v| {
+                t.get("variants")?
+                    .get(v)?
+                    .get("discretization")?
+                    .get("scheme")?
+                    .as_str()
+                    .map(String::from)
+            });
+            variant.or(base)
+        })
+        .unwrap_or_else(|| "standard".into());
+    Discretization {
+        m: scene.horizon / scene.spacing,
+        dx: scene.spacing,
+        scheme,
+    }
+}
+
+/// `base` rebuilt with `choice` wherever it differs from `base`'s own discretization.
+pub fn with_discretization(base: &Scene, choice: &Discretization) -> Result<Scene, SceneError> {
+    let own = discretization_of(base);
+    let mut overrides = toml::Table::new();
+    if choice.dx != own.dx {
+        overrides.insert("spacing".into(), toml::Value::Float(choice.dx));
+    }
+    if choice.m != own.m || choice.dx != own.dx {
+        overrides.insert("horizon".into(), format!("{:?} dx", choice.m).into());
+    }
+    if choice.scheme != own.scheme {
+        overrides.insert("scheme".into(), choice.scheme.clone().into());
+    }
+    if overrides.is_empty() {
+        return Ok(base.clone());
+    }
+    let invalid = |message: String| SceneError {
+        file: base.source.clone(),
+        field: "discretization".into(),
+        line: None,
+        message,
+    };
+    let mut table: toml::Table = base
+        .preset_text
+        .parse()
+        .map_err(|e: toml::de::Error| invalid(e.to_string()))?;
+    let target = match &base.variant {
+        Some(v) => table
+            .get_mut("variants")
+            .and_then(|t| t.get_mut(v))
+            .and_then(|t| t.as_table_mut())
+            .ok_or_else(|| invalid(format!("no variant `{v}`")))?,
+        None => &mut table,
+    };
+    let discretization = target
+        .entry("discretization")
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    let Some(discretization) = discretization.as_table_mut() else {
+        return Err(invalid("`discretization` is not a table".into()));
+    };
+    let changed: Vec<String> = overrides
+        .keys()
+        .map(|k| format!("discretization.{k}"))
+        .collect();
+    discretization.extend(overrides);
+    let text = toml::to_string(&table).map_err(|e| invalid(e.to_string()))?;
+    // `--set` overrides still apply, except those of the values this rebuild changes.
+    let kept: Vec<String> = base
+        .overrides
+        .iter()
+        .filter(|o| {
+            !changed
+                .iter()
+                .any(|k| o.split('=').next().map(str::trim) == Some(k))
+        })
+        .cloned()
+        .collect();
+    let extra = crate::scene::override_table(&base.source, &kept)?;
+    let mut scene = Scene::from_text_with(&base.source, &text, base.variant.as_deref(), &extra)?;
+    scene.overrides = kept;
+    // The preset as the user wrote it stays the recording's preset; the choices are stated
+    // in the run's command log.
+    scene.preset_text = base.preset_text.clone();
+    // Settings made outside the preset (`--every`) carry over.
+    scene.output_every = base.output_every;
+    Ok(scene)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn choices_override_the_variant_and_keep_the_rest() {
+        let base = Scene::load("kalthoff-winkler", Some("small")).unwrap();
+        let own = discretization_of(&base);
+        assert_eq!(own.m, 4.0);
+        assert_eq!(own.dx, 1e-3);
+        assert_eq!(own.scheme, "standard");
+        assert_eq!(
+            with_discretization(&base, &own).unwrap().horizon,
+            base.horizon
+        );
+        let m3 = with_discretization(
+            &base,
+            &Discretization {
+                m: 3.0,
+                ..own.clone()
+            },
+        )
+        .unwrap();
+        assert_eq!(m3.spacing, 1e-3);
+        assert!((m3.horizon - 3e-3).abs() < 1e-15);
+        assert_eq!(m3.precracks.len(), base.precracks.len());
+        let fine = with_discretization(
+            &base,
+            &Discretization {
+                dx: 5e-4,
+                ..own.clone()
+            },
+        )
+        .unwrap();
+        assert_eq!(fine.spacing, 5e-4);
+        assert!(
+            (fine.horizon - 2e-3).abs() < 1e-15,
+            "m kept: {}",
+            fine.horizon
+        );
+    }
+
+    #[test]
+    fn a_choice_the_validation_refuses_gives_its_message() {
+        let base = Scene::load("kalthoff-winkler", Some("small")).unwrap();
+        let own = discretization_of(&base);
+        let e = with_discretization(&base, &Discretization { dx: 1e-6, ..own }).unwrap_err();
+        assert!(e.to_string().contains("discretization.spacing"), "{e}");
+    }
+}
