@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Regenerates screenshots/ from the project itself:
 #   screenshots/panel.png                      the control panel (egui_kittest snapshot, lavapipe)
-#   screenshots/rerun-kalthoff-winkler.png     the Rerun viewer on a scripted Kalthoff–Winkler run
+#   screenshots/rerun-kalthoff-winkler.png     the Rerun viewer on a scripted hybrid Kalthoff–Winkler
+#                                              run: damage, the scheme mask (standard / WLS), Ω_s
 # Needs (Debian): xvfb mesa-vulkan-drivers libvulkan1, and `rerun` (pip install 'rerun-sdk==0.36.3').
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -19,10 +20,11 @@ command -v rerun >/dev/null || pip install -q 'rerun-sdk==0.36.3'
 UPDATE_SNAPSHOTS=1 cargo test --release --test panel panel_snapshot
 cp tests/snapshots/panel.png screenshots/panel.png
 
-# The viewer: a Kalthoff–Winkler run with a command script (χ, Δt, and a restart with m = 3).
+# The viewer: a hybrid-adaptive Kalthoff–Winkler run with a command script (χ, Δt, and a
+# restart with m = 3).
 work=$(mktemp -d)
 trap 'kill ${xvfb:-0} 2>/dev/null || true; rm -rf "$work"' EXIT
-cargo run --release -- record kalthoff-winkler --variant small -q \
+cargo run --release -- record kalthoff-winkler --variant small-hybrid -q \
     --script scripts/kalthoff-winkler-demo.script -o "$work/kw.rrd"
 Xvfb :99 -screen 0 1280x800x24 -nolisten tcp >/dev/null 2>&1 &
 xvfb=$!

@@ -1,5 +1,6 @@
-"""Writes a Rerun blueprint (.rbl) for peridyn recordings: the damage field large, energies and
-the applied commands beside it, the time line following the latest frame.
+"""Writes a Rerun blueprint (.rbl) for peridyn recordings: the damage field and the scheme mask
+(hybrid runs: standard / WLS), energies, the Ω_s fraction and the applied commands beside them,
+the time line following the latest frame.
 
     python3 scripts/viewer_blueprint.py OUT.rbl
 """
@@ -11,12 +12,13 @@ import rerun.blueprint as rrb
 blueprint = rrb.Blueprint(
     rrb.Horizontal(
         rrb.Spatial2DView(origin="/nodes/damage", name="damage"),
+        rrb.Spatial2DView(origin="/nodes/scheme", name="scheme: standard (orange) / WLS (blue)"),
         rrb.Vertical(
             rrb.TimeSeriesView(origin="/metrics/energy", name="energies"),
-            rrb.TimeSeriesView(origin="/metrics/bonds", name="broken bonds"),
+            rrb.TimeSeriesView(origin="/metrics/hybrid/omega_s_fraction", name="Ω_s fraction"),
             rrb.TextLogView(origin="/control/commands", name="commands applied"),
         ),
-        column_shares=[3, 2],
+        column_shares=[2, 2, 2],
     ),
     rrb.TimePanel(timeline="step", play_state="following"),
     collapse_panels=True,
