@@ -47,15 +47,8 @@ enum Command {
     Run {
         #[command(flatten)]
         scene: SceneArgs,
-        /// Stream to a running viewer (default URL rerun+http://127.0.0.1:9876/proxy).
-        #[arg(long, num_args = 0..=1, default_missing_value = "rerun+http://127.0.0.1:9876/proxy", conflicts_with_all = ["serve", "spawn"])]
-        connect: Option<String>,
-        /// Host a gRPC stream that viewers connect to (default 0.0.0.0:9876).
-        #[arg(long, num_args = 0..=1, default_missing_value = "0.0.0.0:9876", conflicts_with = "spawn")]
-        serve: Option<String>,
-        /// Start a local `rerun` viewer (needs `rerun` on PATH).
-        #[arg(long)]
-        spawn: bool,
+        #[command(flatten)]
+        viewer: ViewerArgs,
         /// Also save the stream to this .rrd file.
         #[arg(short, long)]
         output: Option<PathBuf>,
@@ -215,25 +208,17 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
         }
         Command::Run {
             scene,
-            connect,
-            serve,
-            spawn,
+            viewer,
             output,
             run,
         } => {
             let loaded = load(&scene)?;
-            let target = if let Some(url) = connect {
-                RecordTarget::Connect { url, file: output }
-            } else if let Some(addr) = serve {
-                RecordTarget::Serve { addr, file: output }
-            } else if spawn {
-                RecordTarget::Spawn { file: output }
-            } else {
-                RecordTarget::Connect {
+            let target = viewer
+                .target(output.clone())
+                .unwrap_or(RecordTarget::Connect {
                     url: "rerun+http://127.0.0.1:9876/proxy".into(),
                     file: output,
-                }
-            };
+                });
             let summary = simulate(&loaded, target, &run)?;
             Ok(exit_code(&summary))
         }
@@ -498,6 +483,36 @@ fn print_summary(s: &RunSummary, frames_written: u64) {
     }
 }
 
+/// Where a stream goes: a running viewer, a served gRPC stream, or a spawned viewer.
+#[derive(Args)]
+struct ViewerArgs {
+    /// Stream to a running viewer (default URL rerun+http://127.0.0.1:9876/proxy).
+    #[arg(long, num_args = 0..=1, default_missing_value = "rerun+http://127.0.0.1:9876/proxy", conflicts_with_all = ["serve", "spawn"])]
+    connect: Option<String>,
+    /// Host a gRPC stream that viewers connect to (default 0.0.0.0:9876); it keeps serving
+    /// after the run until Ctrl-C.
+    #[arg(long, num_args = 0..=1, default_missing_value = "0.0.0.0:9876", conflicts_with = "spawn")]
+    serve: Option<String>,
+    /// Start a local `rerun` viewer (needs `rerun` on PATH).
+    #[arg(long)]
+    spawn: bool,
+}
+
+impl ViewerArgs {
+    /// The chosen target, also saving to `file` if given; None if no flag was given.
+    fn target(&self, file: Option<PathBuf>) -> Option<RecordTarget> {
+        if let Some(url) = self.connect.clone() {
+            Some(RecordTarget::Connect { url, file })
+        } else if let Some(addr) = self.serve.clone() {
+            Some(RecordTarget::Serve { addr, file })
+        } else if self.spawn {
+            Some(RecordTarget::Spawn { file })
+        } else {
+            None
+        }
+    }
+}
+
 #[derive(Args)]
 struct ReplayArgs {
     /// A recording made by peridyn.
@@ -508,15 +523,8 @@ struct ReplayArgs {
     /// With --resimulate: save the new recording here (default: FILE-resim.rrd).
     #[arg(short, long, requires = "resimulate")]
     output: Option<PathBuf>,
-    /// Send to a running viewer (default URL rerun+http://127.0.0.1:9876/proxy).
-    #[arg(long, num_args = 0..=1, default_missing_value = "rerun+http://127.0.0.1:9876/proxy", conflicts_with_all = ["serve", "spawn"])]
-    connect: Option<String>,
-    /// Host a gRPC stream that viewers connect to (default 0.0.0.0:9876); serves until Ctrl-C.
-    #[arg(long, num_args = 0..=1, default_missing_value = "0.0.0.0:9876", conflicts_with = "spawn")]
-    serve: Option<String>,
-    /// Start a local `rerun` viewer.
-    #[arg(long)]
-    spawn: bool,
+    #[command(flatten)]
+    viewer: ViewerArgs,
     /// No progress bar (with --resimulate).
     #[arg(long, short)]
     quiet: bool,
@@ -629,17 +637,7 @@ fn run_spec(
 }
 
 fn replay(args: ReplayArgs) -> Result<ExitCode, Failure> {
-    let viewer = |file: Option<PathBuf>| {
-        if let Some(url) = args.connect.clone() {
-            Some(RecordTarget::Connect { url, file })
-        } else if let Some(addr) = args.serve.clone() {
-            Some(RecordTarget::Serve { addr, file })
-        } else if args.spawn {
-            Some(RecordTarget::Spawn { file })
-        } else {
-            None
-        }
-    };
+    let viewer = |file: Option<PathBuf>| args.viewer.target(file);
     if args.resimulate {
         let rec = peridyn::readback::read(&args.file).map_err(Failure::BadInput)?;
         if rec.entities.is_empty() {
