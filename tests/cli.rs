@@ -476,6 +476,11 @@ fn scalar_scene_mistakes_are_named() {
             vec!["discretization.scheme", "dynamics uses \"standard\""],
         ),
         (
+            "nan-geometry.toml",
+            GOOD.replace("max = [\"20 mm\", \"10 mm\"]", "max = [nan, \"10 mm\"]"),
+            vec!["geometry", "finite"],
+        ),
+        (
             "static-2d.toml",
             GOOD.replace("dimension = 2", "dimension = 2\nphysics = \"static\""),
             vec!["physics", "1D"],

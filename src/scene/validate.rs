@@ -27,6 +27,13 @@ pub(super) fn validate(
         .geometry
         .to_solid(dim, "geometry")
         .map_err(|m| ctx.from_path_message(&m))?;
+    let (lo, hi) = solid.bounds();
+    if lo.iter().chain(&hi).any(|v| !v.is_finite()) {
+        return Err(ctx.error(
+            "geometry",
+            format!("every coordinate and size must be a finite number; bounds {lo:?} to {hi:?}"),
+        ));
+    }
 
     let d = &p.discretization;
     let spacing = positive(ctx, "discretization.spacing", d.spacing.si())?;
