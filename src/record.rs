@@ -437,12 +437,14 @@ fn log_loop(
 ) -> Result<SinkReport, String> {
     let mut report = SinkReport::default();
     let mut result = Ok(());
+    // Class fields whose annotation context (static) is already logged.
+    let mut annotated: Vec<&'static str> = Vec::new();
     for message in receiver {
         let started = std::time::Instant::now();
         let logged = match message {
             Message::Frame(frame) => {
                 report.frames += 1;
-                log_frame(&stream, &frame, radius)
+                log_frame(&stream, &frame, radius, &mut annotated)
             }
             Message::Command(step, text) => {
                 stream.set_time_sequence("step", step as i64);
@@ -484,6 +486,7 @@ fn log_frame(
     stream: &RecordingStream,
     frame: &Frame,
     radius: f32,
+    annotated: &mut Vec<&'static str>,
 ) -> rerun::RecordingStreamResult<()> {
     stream.set_time_sequence("step", frame.step as i64);
     stream.set_duration_secs("sim_time", frame.time);
@@ -530,11 +533,14 @@ fn log_frame(
     }
     for class in &frame.classes {
         let path = format!("nodes/{}", class.name);
-        let context =
-            rerun::AnnotationContext::new(class.classes.iter().map(|&(id, label, rgb)| {
-                (id, label, rerun::Rgba32::from_rgb(rgb[0], rgb[1], rgb[2]))
-            }));
-        stream.log_static(path.as_str(), &context)?;
+        if !annotated.contains(&class.name) {
+            let context =
+                rerun::AnnotationContext::new(class.classes.iter().map(|&(id, label, rgb)| {
+                    (id, label, rerun::Rgba32::from_rgb(rgb[0], rgb[1], rgb[2]))
+                }));
+            stream.log_static(path.as_str(), &context)?;
+            annotated.push(class.name);
+        }
         let ids = class
             .ids
             .iter()

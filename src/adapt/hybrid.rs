@@ -318,23 +318,33 @@ impl<const D: usize> Hybrid<D> {
             let r = row_of[i] as usize;
             &op.columns[op.offsets[r]..op.offsets[r + 1]]
         };
-        let critical_nodes: Vec<u32> = self
+        let has_critical = |&i: &u32| {
+            let i = i as usize;
+            mask[i] == WLS
+                && if collocation {
+                    columns(i)
+                        .iter()
+                        .any(|&j| critical_collocation(i, j as usize))
+                } else {
+                    families.range(i).any(|b| is_critical(i, b))
+                }
+        };
+        // The common case finds nothing: `any` allocates nothing; the nodes are listed only
+        // when there is something to switch.
+        let critical_nodes: Vec<u32> = if self
             .check_nodes
             .par_iter()
             .with_min_len(256)
-            .filter(|&&i| {
-                let i = i as usize;
-                mask[i] == WLS
-                    && if collocation {
-                        columns(i)
-                            .iter()
-                            .any(|&j| critical_collocation(i, j as usize))
-                    } else {
-                        families.range(i).any(|b| is_critical(i, b))
-                    }
-            })
-            .copied()
-            .collect();
+            .any(has_critical)
+        {
+            self.check_nodes
+                .iter()
+                .copied()
+                .filter(|i| has_critical(i))
+                .collect()
+        } else {
+            Vec::new()
+        };
         self.checked_bonds += self.check_bonds;
         let mut ends: Vec<u32> = Vec::new();
         for &i in &critical_nodes {

@@ -112,12 +112,10 @@ impl Reference {
     }
 
     /// The largest |value| over the given positions and all times: a fixed color range.
-    pub fn amplitude<'a>(&self, mut positions: impl Iterator<Item = &'a [f64]>) -> f64 {
+    pub fn amplitude<'a>(&self, positions: impl Iterator<Item = &'a [f64]>) -> f64 {
         match self {
             Reference::Sine1d { .. } => 1.0,
-            Reference::Quartic2d { .. } => positions
-                .try_fold(0.0, |a: f64, x| Some(a.max(quartic(x).abs())))
-                .unwrap_or(0.0),
+            Reference::Quartic2d { .. } => positions.fold(0.0, |a: f64, x| a.max(quartic(x).abs())),
         }
     }
 }
