@@ -297,7 +297,10 @@ impl<const D: usize> Simulation<D> {
                     stability::spectral_radius(lattice.len() * D, HYBRID_ITERATIONS, |v, out| {
                         let u = v.as_chunks::<D>().0;
                         let out = out.as_chunks_mut::<D>().0;
-                        scheme.apply_linearized(&intact, m.density, u, out);
+                        let mask = h.mask();
+                        scheme.apply_linearized_masked(&intact, m.density, u, out, |i| {
+                            mask[i] == hybrid::WLS
+                        });
                         h.apply_linearized(u, m.density, out);
                     });
                 stable_dt = stable_dt.min(stability::verlet_limit(radius * SPECTRAL_MARGIN));

@@ -224,11 +224,25 @@ impl<const D: usize> Standard<'_, D> {
         u: &[[f64; D]],
         out: &mut [[f64; D]],
     ) {
+        self.apply_linearized_masked(intact, density, u, out, |_| false);
+    }
+
+    /// [`Self::apply_linearized`] on the rows not `skip`ped (others left untouched): the
+    /// standard part of a hybrid operator.
+    pub fn apply_linearized_masked(
+        &self,
+        intact: &[u8],
+        density: f64,
+        u: &[[f64; D]],
+        out: &mut [[f64; D]],
+        skip: impl Fn(usize) -> bool + Sync,
+    ) {
         let (families, law, reference) = (self.families, self.law, self.reference);
         let c = law.micromodulus / density;
         out.par_iter_mut()
             .enumerate()
             .with_min_len(256)
+            .filter(|(i, _)| !skip(*i))
             .for_each(|(i, o)| {
                 let mut acc = [0.0; D];
                 for b in families.range(i) {
