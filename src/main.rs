@@ -410,7 +410,7 @@ fn describe(scene: &Scene, info: &sim::SimInfo, steps: Option<u64>) -> String {
         ),
         Physics::Diffusion | Physics::Corrosion => format!(
             "{name}: {}D {}, {} nodes, {stencil}, Δt = {:.4e} s ({} × forward Euler's \
-             bound {:.4e} s from the operator's spectral radius), {steps} steps, a frame every {}",
+             bound {:.4e} s from {}), {steps} steps, a frame every {}",
             info.dim,
             if scene.physics == Physics::Corrosion {
                 "corrosion"
@@ -421,6 +421,11 @@ fn describe(scene: &Scene, info: &sim::SimInfo, steps: Option<u64>) -> String {
             info.dt,
             ratio(info.dt / info.stable_dt),
             info.stable_dt,
+            if info.stable_dt == info.gershgorin_dt {
+                "Gershgorin discs; the step is below it, no power iteration needed"
+            } else {
+                "the operator's spectral radius"
+            },
             info.frame_every
         ),
         Physics::Dynamics => format!(

@@ -438,7 +438,7 @@ impl<const D: usize> Simulation<D> {
                             .map(|&a| (i as u32, a as u8, layer.value[a])),
                     ),
                     // Scalar-field scenes only (refused for dynamics by validation).
-                    Condition::Reference => {}
+                    Condition::Reference | Condition::Value => {}
                     Condition::BodyForce => {
                         if self.body_force.is_empty() {
                             self.body_force = vec![[0.0; D]; self.lattice.len()];

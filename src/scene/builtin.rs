@@ -6,6 +6,10 @@ const PRESETS: &[(&str, &str)] = &[
         include_str!("../../presets/corrosion-1d.toml"),
     ),
     (
+        "corrosion-3d",
+        include_str!("../../presets/corrosion-3d.toml"),
+    ),
+    (
         "diffusion-2d-manufactured",
         include_str!("../../presets/diffusion-2d-manufactured.toml"),
     ),

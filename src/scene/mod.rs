@@ -121,6 +121,8 @@ pub enum Condition {
     BodyForce,
     /// The scalar field is held at the reference solution.
     Reference,
+    /// The scalar field is held at `value[0]`.
+    Value,
 }
 
 #[derive(Debug, Clone)]

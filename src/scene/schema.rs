@@ -363,6 +363,9 @@ pub struct BoundaryLayer {
     /// Diffusion and static scenes: the field is held at the reference solution.
     #[serde(default)]
     pub hold_reference: bool,
+    /// Diffusion and corrosion scenes: the field is held at this value (a Dirichlet layer, e.g.
+    /// C = 0 in the δ-layer at an electrolyte's outer surface).
+    pub hold_value: Option<Quantity>,
     /// Held velocity (m/s) on the listed `axes`.
     pub velocity: Option<Point>,
     /// Held displacement (m) on the listed `axes`.

@@ -127,19 +127,38 @@ pub(super) fn validate(
         return Err(ctx.error("precracks", "pre-cracks need physics = \"dynamics\""));
     }
     let hybrid = hybrid(p, ctx, scheme.kind, spacing, horizon)?;
-    if physics == Physics::Corrosion && scheme.kind != SchemeKind::Standard {
+    if physics == Physics::Corrosion
+        && !matches!(scheme.kind, SchemeKind::Standard | SchemeKind::HybridFixed)
+    {
         return Err(ctx.error(
             "discretization.scheme",
             format!(
-                "\"{}\": corrosion's bond classes need the standard scheme",
+                "\"{}\": corrosion's bond classes need the standard scheme (or \"hybrid-fixed\", standard where the phases meet)",
                 scheme.kind.name()
             ),
         ));
     }
-    if physics != Physics::Dynamics && scheme.kind.is_hybrid() {
+    let fixed_corrosion = physics == Physics::Corrosion && scheme.kind == SchemeKind::HybridFixed;
+    if physics != Physics::Dynamics && scheme.kind.is_hybrid() && !fixed_corrosion {
         return Err(ctx.error(
             "discretization.scheme",
-            format!("\"{}\" is available for dynamics", scheme.kind.name()),
+            format!(
+                "\"{}\" is available for dynamics (and \"hybrid-fixed\" for corrosion)",
+                scheme.kind.name()
+            ),
+        ));
+    }
+    if let Some(h) = hybrid.as_ref().filter(|_| fixed_corrosion)
+        && h.band < horizon * (1.0 - 1e-9)
+    {
+        return Err(ctx.error(
+            "hybrid.band",
+            format!(
+                "{:.4e} m is below the horizon {horizon:.4e} m: a corrosion hybrid needs Ω_s to \
+                 reach at least δ beyond the solid, so that no Ω_w node has a solid neighbour; \
+                 use e.g. band = \"1.2 horizon\"",
+                h.band
+            ),
         ));
     }
     if physics == Physics::Dynamics && scheme.kind.wls_order().is_some() {
@@ -608,8 +627,28 @@ fn boundary_layer(
             "{path}.velocity: physics = \"{physics:?}\" holds fields with `hold_reference = true`"
         ));
     }
+    if let Some(v) = b.hold_value {
+        if b.hold_reference || mechanical {
+            return Err(format!(
+                "{path}.hold_value: a layer holds one thing: a value, the reference solution, \
+                 or a velocity, displacement or body force"
+            ));
+        }
+        if !matches!(physics, Physics::Diffusion | Physics::Corrosion) {
+            return Err(format!(
+                "{path}.hold_value: only diffusion and corrosion scenes hold a field value"
+            ));
+        }
+        if !v.si().is_finite() {
+            return Err(format!("{path}.hold_value: must be finite, got {}", v.si()));
+        }
+    }
     let (condition, value) = match (&b.velocity, &b.displacement, &b.body_force) {
         _ if b.hold_reference => (Condition::Reference, vec![0.0; dim]),
+        _ if b.hold_value.is_some() => (
+            Condition::Value,
+            vec![b.hold_value.map_or(0.0, |v| v.si())],
+        ),
         (Some(v), None, None) => (
             Condition::Velocity,
             point(v, dim, &format!("{path}.velocity"))?,

@@ -48,14 +48,12 @@ impl ScalarOperator {
     }
 
     /// out[rows[r]] = Σ_j w_rj values[j] for every row; other entries are left alone.
+    /// Allocates the row values (meant for setup work such as power iterations).
     pub fn apply(&self, values: &[f64], out: &mut [f64]) {
-        for (r, &i) in self.rows.iter().enumerate() {
-            let range = self.offsets[r]..self.offsets[r + 1];
-            out[i as usize] = self.columns[range.clone()]
-                .iter()
-                .zip(&self.weights[range])
-                .map(|(&j, w)| w * values[j as usize])
-                .sum();
+        let mut rows = vec![0.0; self.rows.len()];
+        self.apply_rows(values, &mut rows);
+        for (&i, v) in self.rows.iter().zip(rows) {
+            out[i as usize] = v;
         }
     }
 }

@@ -191,22 +191,65 @@ pub fn collocation_set<const D: usize>(
     if let Ok(self_slot) = candidates.binary_search(&(i as u32)) {
         taken[self_slot] = true;
     }
+    // Candidates bucketed by their offset rounded to the auxiliary grid: a target's nearest
+    // candidate is searched in the 3^D cells around it first. Anything outside them is at
+    // least 1.5 h away on some axis, so a hit closer than that is the exact nearest (ties
+    // included); otherwise the whole family is scanned.
+    // Dense buckets (a head per cell, a chain through `next`), cells within k + 2 of the node.
+    let reach = k + 2;
+    let side = (2 * reach + 1) as usize;
+    let cell_index = |cell: [i64; D]| -> Option<usize> {
+        cell.iter().try_fold(0usize, |acc, &c| {
+            (c.abs() <= reach).then(|| acc * side + (c + reach) as usize)
+        })
+    };
+    let mut head = vec![usize::MAX; side.pow(D as u32)];
+    let mut next = vec![usize::MAX; candidates.len()];
+    for (slot, &j) in candidates.iter().enumerate() {
+        let cell: [i64; D] = std::array::from_fn(|a| {
+            ((positions[j as usize][a] - positions[i][a]) / h).round() as i64
+        });
+        if let Some(c) = cell_index(cell) {
+            next[slot] = head[c];
+            head[c] = slot;
+        }
+    }
+    let distance2 = |slot: usize, target: &[f64; D]| -> f64 {
+        let j = candidates[slot] as usize;
+        (0..D).map(|a| (positions[j][a] - target[a]).powi(2)).sum()
+    };
+    let closer = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+    let exact_within = (1.5 * h).powi(2);
     let mut index = [-k; D];
     'grid: loop {
         let n2: i64 = index.iter().map(|v| v * v).sum();
         if n2 > 0 && n2 <= k * k {
             let target: [f64; D] = std::array::from_fn(|a| positions[i][a] + index[a] as f64 * h);
-            let best = candidates
-                .iter()
-                .enumerate()
-                .filter(|(slot, _)| !taken[*slot])
-                .map(|(slot, &j)| {
-                    let d2: f64 = (0..D)
-                        .map(|a| (positions[j as usize][a] - target[a]).powi(2))
-                        .sum();
-                    (d2, slot)
-                })
-                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            let mut near: Option<(f64, usize)> = None;
+            for code in 0..3usize.pow(D as u32) {
+                let mut c = code;
+                let cell: [i64; D] = std::array::from_fn(|a| {
+                    let v = index[a] + (c % 3) as i64 - 1;
+                    c /= 3;
+                    v
+                });
+                let mut slot = cell_index(cell).map_or(usize::MAX, |c| head[c]);
+                while slot != usize::MAX {
+                    if !taken[slot] {
+                        let cand = (distance2(slot, &target), slot);
+                        if near.is_none_or(|n| closer(&cand, &n).is_lt()) {
+                            near = Some(cand);
+                        }
+                    }
+                    slot = next[slot];
+                }
+            }
+            let best = near.filter(|n| n.0 < exact_within).or_else(|| {
+                (0..candidates.len())
+                    .filter(|&slot| !taken[slot])
+                    .map(|slot| (distance2(slot, &target), slot))
+                    .min_by(closer)
+            });
             if let Some((_, slot)) = best {
                 taken[slot] = true;
                 chosen.push(candidates[slot]);
@@ -514,6 +557,73 @@ mod tests {
         let families = Families::build(&lattice.positions, m as f64 * (1.0 + 1e-9));
         let c = centre_node(&lattice, (n / 2) as f64);
         (lattice, families, c)
+    }
+
+    /// The bucketed search picks exactly what a scan of the whole family picks, on perturbed
+    /// lattices (targets off the nodes, ties, edges of the body) in 2D and 3D.
+    #[test]
+    fn collocation_set_equals_a_full_scan() {
+        fn full_scan<const D: usize>(
+            i: usize,
+            positions: &[[f64; D]],
+            families: &Families,
+            horizon: f64,
+            k_aux: usize,
+        ) -> Vec<u32> {
+            let (h, k) = (horizon / k_aux as f64, k_aux as i64);
+            let mut candidates: Vec<u32> = std::iter::once(i as u32)
+                .chain(families.range(i).map(|b| families.neighbors[b]))
+                .collect();
+            candidates.sort_unstable();
+            let mut chosen = vec![i as u32];
+            let mut taken: Vec<bool> = candidates.iter().map(|&j| j as usize == i).collect();
+            let offsets: Vec<[i64; D]> = (0..(2 * k + 1).pow(D as u32))
+                .map(|code| {
+                    let mut c = code;
+                    std::array::from_fn(|_| {
+                        let v = c % (2 * k + 1) - k;
+                        c /= 2 * k + 1;
+                        v
+                    })
+                })
+                .collect();
+            for index in offsets {
+                let n2: i64 = index.iter().map(|v| v * v).sum();
+                if n2 == 0 || n2 > k * k {
+                    continue;
+                }
+                let target: [f64; D] =
+                    std::array::from_fn(|a| positions[i][a] + index[a] as f64 * h);
+                let best = (0..candidates.len())
+                    .filter(|&s| !taken[s])
+                    .map(|s| {
+                        let j = candidates[s] as usize;
+                        let d2: f64 = (0..D).map(|a| (positions[j][a] - target[a]).powi(2)).sum();
+                        (d2, s)
+                    })
+                    .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                if let Some((_, s)) = best {
+                    taken[s] = true;
+                    chosen.push(candidates[s]);
+                }
+            }
+            chosen
+        }
+        fn check<const D: usize>(m: usize, perturbation: f64, k_aux: usize) {
+            let (lattice, families, _) = setup::<D>(m, perturbation);
+            for i in (0..lattice.len()).step_by(7) {
+                assert_eq!(
+                    collocation_set(i, &lattice.positions, &families, m as f64, k_aux),
+                    full_scan(i, &lattice.positions, &families, m as f64, k_aux),
+                    "node {i}, {D}D, m = {m}, perturbation {perturbation}, k_aux {k_aux}"
+                );
+            }
+        }
+        check::<2>(4, 0.0, 3);
+        check::<2>(4, 0.3, 3);
+        check::<2>(5, 0.45, 4);
+        check::<3>(3, 0.0, 3);
+        check::<3>(3, 0.3, 3);
     }
 
     #[test]

@@ -7,6 +7,9 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
+pub mod hybrid;
+
+use crate::adapt;
 use crate::family::{self, Families};
 use crate::frame::{ClassField, Frame, NodeField};
 use crate::grid::Lattice;
@@ -29,6 +32,12 @@ const SPECTRAL_MARGIN: f64 = 1.02;
 /// A field this many times larger than its scale has diverged.
 const DIVERGENCE_FACTOR: f64 = 1e6;
 
+struct FixedHybrid {
+    mask: Vec<u8>,
+    wls: ScalarOperator,
+    rate: Vec<f64>,
+}
+
 pub struct ScalarSimulation<const D: usize> {
     scene: Scene,
     positions: Vec<[f64; D]>,
@@ -42,8 +51,12 @@ pub struct ScalarSimulation<const D: usize> {
     reference: Option<Reference>,
     /// Corrosion scenes: phases and bond classes.
     corrosion: Option<Corrosion>,
+    /// The fixed hybrid: per-node scheme mask, and the WLS rows (Ω_w) with their rates;
+    /// `operator` then holds the Ω_s rows only.
+    hybrid: Option<FixedHybrid>,
     dt: f64,
     stable_dt: f64,
+    gershgorin_dt: f64,
     total_steps: u64,
     frame_every: u64,
     step: u64,
@@ -136,7 +149,8 @@ impl<const D: usize> ScalarSimulation<D> {
         for (l, layer) in scene.boundary.iter().enumerate() {
             let mut count = 0;
             for (i, x) in lattice.positions.iter().enumerate() {
-                if layer.condition == Condition::Reference && layer.contains(x, &lo, &hi, eps) {
+                let holds = matches!(layer.condition, Condition::Reference | Condition::Value);
+                if holds && layer.contains(x, &lo, &hi, eps) {
                     is_held[i] = true;
                     count += 1;
                 }
@@ -165,12 +179,10 @@ impl<const D: usize> ScalarSimulation<D> {
         }
         let radius = family::search_radius(scene.family_radius, scene.horizon, scene.spacing);
         let families = Families::build(&lattice.positions, radius);
-        let operator = assemble(scene, &lattice, &families, &free)
-            .map_err(|m| error("discretization.collocation_factor", m))?;
 
         let reference = scene.reference;
         let eps = 1e-9 * scene.spacing;
-        let field: Vec<f64> = lattice
+        let mut field: Vec<f64> = lattice
             .positions
             .iter()
             .map(|x| {
@@ -183,10 +195,53 @@ impl<const D: usize> ScalarSimulation<D> {
                 set.unwrap_or_else(|| reference.map_or(0.0, |r| r.value(x, 0.0)))
             })
             .collect();
+        // Value layers hold their value from the start (later layers win).
+        for layer in scene.boundary.iter().filter(|b| b.condition == Condition::Value) {
+            for (i, x) in lattice.positions.iter().enumerate() {
+                if layer.contains(x, &lo, &hi, eps) {
+                    field[i] = layer.value[0];
+                }
+            }
+        }
         let corrosion = scene.diffusion.and_then(|d| {
             d.corrosion
                 .map(|c| Corrosion::new(d.diffusivity, c, &field, &lattice.volumes))
         });
+        let hybrid = match (&scene.hybrid, &corrosion, scene.diffusion) {
+            (Some(spec), Some(c), Some(d)) => {
+                let solid: Vec<bool> = c.phase.iter().map(|&p| p == corrosion::SOLID).collect();
+                let mask = hybrid::corrosion_mask(&lattice.positions, &solid, &is_held, spec.band);
+                let liquid = DiffusionKernel {
+                    diffusivity: d.diffusivity,
+                    ..kernel(scene)
+                };
+                let wls = hybrid::liquid_operator(
+                    &mask,
+                    &lattice.positions,
+                    &families,
+                    &liquid,
+                    scene.scheme.collocation_factor,
+                )
+                .map_err(|e| error("hybrid.collocation_factor", e.to_string()))?;
+                let rows = wls.rows.len();
+                Some(FixedHybrid {
+                    mask,
+                    wls,
+                    rate: vec![0.0; rows],
+                })
+            }
+            _ => None,
+        };
+        let standard_rows: Vec<u32> = match &hybrid {
+            Some(h) => free
+                .iter()
+                .copied()
+                .filter(|&i| h.mask[i as usize] == adapt::hybrid::STANDARD)
+                .collect(),
+            None => free,
+        };
+        let operator = assemble(scene, &lattice, &families, &standard_rows)
+            .map_err(|m| error("discretization.collocation_factor", m))?;
         // The unit operator times the largest bond κ bounds the corrosion operator's spectrum.
         let kappa_scale = corrosion.as_ref().map_or(1.0, |c| c.kappa_max());
         let amplitude = reference
@@ -195,15 +250,40 @@ impl<const D: usize> ScalarSimulation<D> {
             })
             .max(field.iter().fold(0.0, |a: f64, v| a.max(v.abs())));
 
-        let (dt, stable_dt, total_steps) = match scene.physics {
-            Physics::Static => (0.0, f64::INFINITY, 1),
+        let (dt, stable_dt, gershgorin_dt, total_steps) = match scene.physics {
+            Physics::Static => (0.0, f64::INFINITY, f64::INFINITY, 1),
             _ => {
-                let n = lattice.len();
-                let radius = kappa_scale
-                    * stability::spectral_radius(n, POWER_ITERATIONS, |v, out| {
-                        operator.apply(v, out)
-                    });
-                let stable_dt = stability::euler_limit(radius * SPECTRAL_MARGIN);
+                // Every eigenvalue lies in a Gershgorin disc: |λ| ≤ max_r Σ_e |w_re|. A step
+                // below 2/that needs no power iteration (which costs 300 operator passes).
+                let disc_radius = |op: &ScalarOperator, scale: f64| {
+                    (0..op.rows.len())
+                        .into_par_iter()
+                        .map(|r| {
+                            scale
+                                * op.weights[op.offsets[r]..op.offsets[r + 1]]
+                                    .iter()
+                                    .map(|w| w.abs())
+                                    .sum::<f64>()
+                        })
+                        .reduce(|| 0.0, f64::max)
+                };
+                let gershgorin = disc_radius(&operator, kappa_scale)
+                    .max(hybrid.as_ref().map_or(0.0, |h| disc_radius(&h.wls, 1.0)));
+                let gershgorin_dt = stability::euler_limit(gershgorin);
+                let stable_dt = match scene.time.step {
+                    StepSize::Absolute(dt) if dt <= gershgorin_dt => gershgorin_dt,
+                    _ => {
+                        let n = lattice.len();
+                        let radius = stability::spectral_radius(n, POWER_ITERATIONS, |v, out| {
+                            operator.apply(v, out);
+                            out.iter_mut().for_each(|o| *o *= kappa_scale);
+                            if let Some(h) = &hybrid {
+                                h.wls.apply(v, out);
+                            }
+                        });
+                        stability::euler_limit(radius * SPECTRAL_MARGIN)
+                    }
+                };
                 let dt = match scene.time.step {
                     StepSize::Absolute(dt) => {
                         if dt > stable_dt && !scene.time.allow_unstable {
@@ -225,7 +305,7 @@ impl<const D: usize> ScalarSimulation<D> {
                     Duration::Steps(n) => n,
                     Duration::End(t) => ((t / dt) - 1e-9).ceil().max(1.0) as u64,
                 };
-                (dt, stable_dt, steps)
+                (dt, stable_dt, gershgorin_dt, steps)
             }
         };
         let rows = operator.rows.len();
@@ -239,8 +319,10 @@ impl<const D: usize> ScalarSimulation<D> {
             rate: vec![0.0; rows],
             reference,
             corrosion,
+            hybrid,
             dt,
             stable_dt,
+            gershgorin_dt,
             total_steps,
             frame_every: scene.output_every.unwrap_or((total_steps / 100).max(1)),
             step: 0,
@@ -339,15 +421,28 @@ impl<const D: usize> ScalarSimulation<D> {
         Ok(())
     }
 
-    /// Forward Euler (31): C⁺ = C + Δt (L C + S) on the free nodes; returns max |C⁺|.
+    /// Forward Euler (31): C⁺ = C + Δt (L C + S) on the free nodes (both schemes' rows of a
+    /// hybrid); returns max |C⁺|.
     fn euler_update(&mut self, t: f64) -> f64 {
+        let mut updated = self.euler_rows(t, false);
+        if self.hybrid.is_some() {
+            updated = updated.max(self.euler_rows(t, true));
+        }
+        updated
+    }
+
+    /// [`Self::euler_update`] on one row set: the Ω_w rows of the hybrid if `liquid`, else
+    /// `operator`'s. The new values go to the rate buffer first (the update is Jacobi-like).
+    fn euler_rows(&mut self, t: f64, liquid: bool) -> f64 {
         let (dt, horizon) = (self.dt, self.scene.horizon);
         let reference = self.reference;
         let positions = &self.positions;
         let field = &self.field;
-        let rows = &self.operator.rows;
-        let updated: f64 = self
-            .rate
+        let (rows, rates) = match (&mut self.hybrid, liquid) {
+            (Some(h), true) => (&h.wls.rows, &mut h.rate),
+            _ => (&self.operator.rows, &mut self.rate),
+        };
+        let updated: f64 = rates
             .par_iter_mut()
             .enumerate()
             .map(|(r, rate)| {
@@ -357,10 +452,19 @@ impl<const D: usize> ScalarSimulation<D> {
                 rate.abs()
             })
             .reduce(|| 0.0, f64::max);
-        for (r, &i) in rows.iter().enumerate() {
+        updated
+    }
+
+    /// Writes the updated values held in the rate buffers into the field.
+    fn commit_update(&mut self) {
+        for (r, &i) in self.operator.rows.iter().enumerate() {
             self.field[i as usize] = self.rate[r];
         }
-        updated
+        if let Some(h) = &self.hybrid {
+            for (r, &i) in h.wls.rows.iter().enumerate() {
+                self.field[i as usize] = h.rate[r];
+            }
+        }
     }
 }
 
@@ -378,8 +482,12 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             Some(c) => c.rates(&self.operator, &self.field, &mut self.rate),
             None => self.operator.apply_rows(&self.field, &mut self.rate),
         }
+        if let Some(h) = self.hybrid.as_mut() {
+            h.wls.apply_rows(&self.field, &mut h.rate);
+        }
         let t1 = Instant::now();
         let max_value = self.euler_update(t);
+        self.commit_update();
         let t2 = Instant::now();
         self.hold_reference(t + self.dt);
         if let Some(c) = self.corrosion.as_mut() {
@@ -456,6 +564,16 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             ));
             let solid = c.phase.iter().filter(|&&p| p == corrosion::SOLID).count();
             scalars.push(("corrosion/solid_nodes".to_string(), solid as f64));
+            if let Some(h) = &self.hybrid {
+                // No node of Ω_w may be solid (a phase change there): counted, never expected.
+                let violations = h
+                    .mask
+                    .iter()
+                    .zip(&c.phase)
+                    .filter(|(m, p)| **m == adapt::hybrid::WLS && **p == corrosion::SOLID)
+                    .count();
+                scalars.push(("hybrid/violations".to_string(), violations as f64));
+            }
             classes.push(ClassField {
                 name: "phase",
                 ids: c.phase.iter().map(|&p| u16::from(p)).collect(),
@@ -463,6 +581,17 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
                     (corrosion::LIQUID as u16, "liquid", [107, 174, 214]),
                     (corrosion::SOLID as u16, "solid", [150, 150, 150]),
                 ],
+            });
+        }
+        if let Some(h) = &self.hybrid {
+            scalars.push((
+                "hybrid/omega_s_fraction".to_string(),
+                hybrid::standard_fraction(&h.mask),
+            ));
+            classes.push(ClassField {
+                name: "scheme",
+                ids: h.mask.iter().map(|&m| u16::from(m)).collect(),
+                classes: hybrid::SCHEME_CLASSES,
             });
         }
         let amplitude = if self.amplitude > 0.0 {
@@ -496,17 +625,22 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
 
     fn info(&self) -> SimInfo {
         let op = &self.operator;
+        let (wls_entries, wls_rows) = self
+            .hybrid
+            .as_ref()
+            .map_or((0, 0), |h| (h.wls.columns.len(), h.wls.rows.len()));
+        let entries = op.columns.len() + wls_entries;
         SimInfo {
             dim: D,
             nodes: self.positions.len(),
-            bonds: op.columns.len(),
+            bonds: entries,
             dt: self.dt,
             stable_dt: self.stable_dt,
-            gershgorin_dt: self.stable_dt,
+            gershgorin_dt: self.gershgorin_dt,
             total_steps: self.total_steps,
             frame_every: self.frame_every,
             bytes_per_bond: 12.0,
-            stencil: op.columns.len() as f64 / op.rows.len().max(1) as f64,
+            stencil: entries as f64 / (op.rows.len() + wls_rows).max(1) as f64,
         }
     }
 
