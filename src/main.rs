@@ -92,7 +92,8 @@ enum Command {
         /// Only the WLS-against-standard cost per node-step (2D m = 12, 3D m = 6).
         #[arg(long)]
         schemes_only: bool,
-        /// Only the hybrid-against-standard pair on kalthoff-winkler (`medium`, or `small`).
+        /// Only the hybrid-against-standard pairs: kalthoff-winkler `medium` (or `small`) and
+        /// corrosion-3d (1000 steps of the base scene, or `small` to its end).
         #[arg(long, value_name = "VARIANT", num_args = 0..=1, default_missing_value = "medium")]
         hybrid_only: Option<String>,
     },

@@ -1,7 +1,8 @@
 //! Hybrid against all-standard on the same grid and time step, in one process (issue 5):
 //! Kalthoff–Winkler with the hybrid-adaptive scheme (default check: every Ω_w bond every
 //! step, and the `near` policy) against the standard scheme, with crack angles and the Ω_s
-//! fraction beside the wall times.
+//! fraction beside the wall times; and `corrosion-3d`'s fixed hybrid against all-standard,
+//! with the relative volume loss beside them.
 
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -16,10 +17,17 @@ struct Run {
     steps: u64,
     angles: Vec<(String, Option<f64>)>,
     omega_s: Option<(f64, f64)>,
+    volume_loss: Option<f64>,
 }
 
-fn run(preset: &str, variant: &str, set: &[String], label: &str) -> Result<(Run, f64), String> {
-    let mut scene = Scene::load_with(preset, Some(variant), set).map_err(|e| e.to_string())?;
+fn run(
+    preset: &str,
+    variant: Option<&str>,
+    set: &[String],
+    label: &str,
+    steps: Option<u64>,
+) -> Result<(Run, f64), String> {
+    let mut scene = Scene::load_with(preset, variant, set).map_err(|e| e.to_string())?;
     scene.output_every = Some(u64::MAX / 2);
     let started = Instant::now();
     let mut stepper = sim::build(&scene).map_err(|e| e.to_string())?;
@@ -29,10 +37,11 @@ fn run(preset: &str, variant: &str, set: &[String], label: &str) -> Result<(Run,
         stepper.as_mut(),
         &mut NullSink,
         &Default::default(),
-        None,
+        steps,
         &mut |_, _| {},
     );
-    let last = stepper.frame().scalar("hybrid/omega_s_fraction");
+    let frame = stepper.frame();
+    let last = frame.scalar("hybrid/omega_s_fraction");
     Ok((
         Run {
             label: label.to_string(),
@@ -40,6 +49,7 @@ fn run(preset: &str, variant: &str, set: &[String], label: &str) -> Result<(Run,
             steps: summary.steps,
             angles: summary.crack_angles,
             omega_s: initial.zip(last),
+            volume_loss: frame.scalar("corrosion/volume_loss"),
         },
         setup,
     ))
@@ -55,9 +65,10 @@ pub fn report(variant: &str) -> Result<String, String> {
     let dt_set = format!("time.dt={dt:e}");
     let (standard, _) = run(
         "kalthoff-winkler",
-        variant,
+        Some(variant),
         std::slice::from_ref(&dt_set),
         "standard",
+        None,
     )?;
     let mut rows = vec![standard];
     let mut setups = Vec::new();
@@ -67,14 +78,14 @@ pub fn report(variant: &str) -> Result<String, String> {
     ] {
         let (r, setup) = run(
             "kalthoff-winkler",
-            &hybrid_variant,
+            Some(&hybrid_variant),
             &[dt_set.clone(), format!("hybrid.check=\"{check}\"")],
             label,
+            None,
         )?;
         setups.push(setup);
         rows.push(r);
     }
-    let base = rows[0].wall;
     let mut out = format!(
         "## Hybrid against standard: kalthoff-winkler `{variant}` ({} threads)\n\n\
          Same grid, same Δt = {dt:.4e} s (0.7 × the hybrid's stable step: WLS-2's compact \
@@ -86,7 +97,58 @@ pub fn report(variant: &str) -> Result<String, String> {
         rows[0].steps,
         setups.first().copied().unwrap_or(0.0)
     );
+    table(&mut out, &rows);
+    out.push_str(&corrosion_report(variant)?);
+    Ok(out)
+}
+
+/// The `corrosion-3d` pair: `medium` times 1000 steps of the full scaled scene (Δt = 0.1 s;
+/// the dissolution starts later), `small` runs the coarse scene to its end (3000 s).
+fn corrosion_report(variant: &str) -> Result<String, String> {
+    let (hybrid_variant, standard_variant, steps) = match variant {
+        "small" => (Some("small"), "small-standard", None),
+        _ => (None, "standard", Some(1000)),
+    };
+    let mut rows = Vec::new();
+    let mut setups = Vec::new();
+    for (v, label) in [
+        (Some(standard_variant), "standard"),
+        (hybrid_variant, "hybrid-fixed"),
+    ] {
+        let (r, setup) = run("corrosion-3d", v, &[], label, steps)?;
+        rows.push(r);
+        setups.push(setup);
+    }
+    let mut out = format!(
+        "\n## Hybrid against standard: corrosion-3d `{}` ({} threads)\n\n\
+         Same grid and Δt, {} steps; wall time of the steps (setup: standard {:.1} s, hybrid \
+         {:.1} s, families and operator assembly).\n\n\
+         | scheme | wall (s) | speed-up | Ω_s | relative volume loss |\n|---|---:|---:|---|---:|\n",
+        if variant == "small" { "small" } else { "base" },
+        rayon::current_num_threads(),
+        rows[0].steps,
+        setups[0],
+        setups[1]
+    );
+    let base = rows[0].wall;
     for r in &rows {
+        let _ = writeln!(
+            out,
+            "| {} | {:.2} | {:.2}× | {} | {:.4} |",
+            r.label,
+            r.wall,
+            base / r.wall,
+            r.omega_s
+                .map_or("100 %".into(), |(a, _)| format!("{:.2} %", 100.0 * a)),
+            r.volume_loss.unwrap_or(f64::NAN)
+        );
+    }
+    Ok(out)
+}
+
+fn table(out: &mut String, rows: &[Run]) {
+    let base = rows[0].wall;
+    for r in rows {
         let angles: Vec<String> = r
             .angles
             .iter()
@@ -109,5 +171,4 @@ pub fn report(variant: &str) -> Result<String, String> {
             angles.join(", ")
         );
     }
-    Ok(out)
 }
