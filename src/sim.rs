@@ -3,6 +3,8 @@
 
 use std::time::{Duration as WallDuration, Instant};
 
+use rayon::prelude::*;
+
 use crate::adapt::hybrid::{self, Hybrid};
 use crate::family::{self, Families};
 use crate::frame::{ClassField, Frame, NodeField};
@@ -722,13 +724,21 @@ impl<const D: usize> Stepper for Simulation<D> {
             .map(|v| v.iter().map(|x| x * x).sum::<f64>().sqrt())
             .collect();
         let (kinetic, momentum) = self.kinetic_energy_and_momentum();
-        // W_i from the last force evaluation, at the current positions.
-        let strain: f64 = self
-            .terms
-            .iter()
-            .zip(&self.lattice.volumes)
-            .map(|(t, v)| t.energy_density * v)
-            .sum();
+        // W_i from the last force evaluation, at the current positions. An Ω_w node's WLS
+        // force has no local energy density (−½ u_i·f_i sums to the energy only over a whole
+        // WLS body): its PMB bond energy over its family is evaluated here, at frame time.
+        let mask = self.hybrid.as_ref().map(|h| h.mask());
+        let node_energy: Vec<f64> = (0..self.lattice.len())
+            .into_par_iter()
+            .map(|i| {
+                let w = match mask {
+                    Some(m) if m[i] == hybrid::WLS => self.energy_density(i),
+                    _ => self.terms[i].energy_density,
+                };
+                w * self.lattice.volumes[i]
+            })
+            .collect();
+        let strain: f64 = node_energy.iter().sum();
         let now = Instant::now();
         let (last_step, last_time) = self.last_frame;
         let steps_since = self.step.saturating_sub(last_step);

@@ -72,9 +72,9 @@ fn coarse_grid_against_fine() {
 
 /// Steps `corrosion-3d` (variant, overrides) to its end; returns the frames' scalars every
 /// `every` steps: (time, volume loss, solid nodes, Ω_s fraction, violations).
-fn corrosion_3d(variant: &str, set: &[&str], every: u64) -> Vec<(f64, f64, f64, f64, f64)> {
+fn corrosion_3d(variant: Option<&str>, set: &[&str], every: u64) -> Vec<(f64, f64, f64, f64, f64)> {
     let set: Vec<String> = set.iter().map(|s| s.to_string()).collect();
-    let scene = Scene::load_with("corrosion-3d", Some(variant), &set).unwrap();
+    let scene = Scene::load_with("corrosion-3d", variant, &set).unwrap();
     let mut sim = sim::build(&scene).unwrap();
     let mut rows = Vec::new();
     for step in 0..=sim.info().total_steps {
@@ -102,14 +102,9 @@ fn corrosion_3d(variant: &str, set: &[&str], every: u64) -> Vec<(f64, f64, f64, 
 /// layer drains mass; the solid only shrinks; Ω_s stays fixed.
 #[test]
 fn corrosion_3d_hybrid_volume_loss_follows_the_standard_scheme() {
-    let hybrid = corrosion_3d("small", &[], 100);
-    let standard = corrosion_3d("small-standard", &[], 100);
-    assert_eq!(hybrid.len(), standard.len());
-    let worst = hybrid
-        .iter()
-        .zip(&standard)
-        .map(|(h, s)| (h.1 - s.1).abs())
-        .fold(0.0, f64::max);
+    let hybrid = corrosion_3d(Some("small"), &[], 100);
+    let standard = corrosion_3d(Some("small-standard"), &[], 100);
+    let worst = largest_difference(&hybrid, &standard);
     let (last_h, last_s) = (hybrid.last().unwrap(), standard.last().unwrap());
     eprintln!(
         "largest volume-loss difference {worst:.4}; final {:.4} (hybrid) vs {:.4} (standard); Ω_s {:.2} %",
@@ -118,12 +113,52 @@ fn corrosion_3d_hybrid_volume_loss_follows_the_standard_scheme() {
         100.0 * last_h.3
     );
     assert!(worst < 0.02, "{worst}");
-    assert!(last_s.1 > 0.5, "the specimen loses over half its volume: {}", last_s.1);
-    assert!(hybrid.iter().all(|r| r.4 == 0.0), "a node of Ω_w turned solid");
-    assert!(hybrid.iter().all(|r| r.3 == hybrid[0].3 && r.3 > 0.0 && r.3 < 0.5));
+    assert!(
+        last_s.1 > 0.5,
+        "the specimen loses over half its volume: {}",
+        last_s.1
+    );
+    assert!(
+        hybrid.iter().all(|r| r.4 == 0.0),
+        "a node of Ω_w turned solid"
+    );
+    assert!(
+        hybrid
+            .iter()
+            .all(|r| r.3 == hybrid[0].3 && r.3 > 0.0 && r.3 < 0.5)
+    );
     for run in [&hybrid, &standard] {
         assert!(run.windows(2).all(|w| w[1].2 <= w[0].2 && w[1].1 >= w[0].1));
     }
+}
+
+fn largest_difference(
+    hybrid: &[(f64, f64, f64, f64, f64)],
+    standard: &[(f64, f64, f64, f64, f64)],
+) -> f64 {
+    assert_eq!(hybrid.len(), standard.len());
+    hybrid
+        .iter()
+        .zip(standard)
+        .map(|(h, s)| (h.1 - s.1).abs())
+        .fold(0.0, f64::max)
+}
+
+/// The full scaled scene (195 k nodes, m = 6) at Δt = 1 s to 3000 s: minutes, so run on demand
+/// (`cargo test --release --test corrosion -- --ignored`); the figure is in the README.
+#[test]
+#[ignore]
+fn corrosion_3d_full_size_hybrid_volume_loss_follows_the_standard_scheme() {
+    let set = ["time.dt=\"1 s\"", "time.end=\"3000 s\""];
+    let hybrid = corrosion_3d(None, &set, 100);
+    let standard = corrosion_3d(Some("standard"), &set, 100);
+    let worst = largest_difference(&hybrid, &standard);
+    eprintln!(
+        "largest volume-loss difference {worst:.4}; final {:.4} (hybrid) vs {:.4} (standard)",
+        hybrid.last().unwrap().1,
+        standard.last().unwrap().1
+    );
+    assert!(worst < 0.02, "{worst}");
 }
 
 /// With no held layer, the 3D bi-material scheme conserves mass (no-flux surface) to 1e-10.

@@ -139,8 +139,7 @@ impl<const D: usize> Hybrid<D> {
             forward_start: (0..mask_len)
                 .map(|i| {
                     let range = families.range(i);
-                    range.start
-                        + families.neighbors[range].partition_point(|&j| (j as usize) < i)
+                    range.start + families.neighbors[range].partition_point(|&j| (j as usize) < i)
                 })
                 .collect(),
             scans_backward: Vec::new(),
@@ -414,7 +413,8 @@ impl<const D: usize> Hybrid<D> {
                 } else {
                     self.forward_critical(i, reference, positions, families, factor)
                         || (self.scans_backward[i]
-                            && self.responsible_bonds(i, families)
+                            && self
+                                .responsible_bonds(i, families)
                                 .take_while(|&b| b < self.forward_start[i])
                                 .any(|b| is_critical(i, b)))
                 }
@@ -509,7 +509,7 @@ impl<const D: usize> Hybrid<D> {
     }
 
     /// WLS forces K u on the Ω_w nodes (u = positions − reference), written into their terms
-    /// with the linear-elastic energy density W_i = −½ u_i · f_i.
+    /// (energy density 0: frames evaluate Ω_w nodes' bond energy themselves).
     pub fn wls_forces(
         &mut self,
         reference: &[[f64; D]],
@@ -534,7 +534,7 @@ impl<const D: usize> Hybrid<D> {
             if mask[i] == WLS {
                 let f = self.wls_force[r];
                 terms[i].force = f;
-                terms[i].energy_density = -0.5 * (0..D).map(|k| u[i][k] * f[k]).sum::<f64>();
+                terms[i].energy_density = 0.0;
             }
         }
     }

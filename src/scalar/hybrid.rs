@@ -48,7 +48,11 @@ pub fn corrosion_mask<const D: usize>(
         positions
             .par_iter()
             .map(|x| {
-                tree.query(x).nearest_one::<SquaredEuclidean<f64>>().execute().distance <= band2
+                tree.query(x)
+                    .nearest_one::<SquaredEuclidean<f64>>()
+                    .execute()
+                    .distance
+                    <= band2
             })
             .collect()
     };

@@ -196,7 +196,11 @@ impl<const D: usize> ScalarSimulation<D> {
             })
             .collect();
         // Value layers hold their value from the start (later layers win).
-        for layer in scene.boundary.iter().filter(|b| b.condition == Condition::Value) {
+        for layer in scene
+            .boundary
+            .iter()
+            .filter(|b| b.condition == Condition::Value)
+        {
             for (i, x) in lattice.positions.iter().enumerate() {
                 if layer.contains(x, &lo, &hi, eps) {
                     field[i] = layer.value[0];

@@ -645,10 +645,9 @@ fn boundary_layer(
     }
     let (condition, value) = match (&b.velocity, &b.displacement, &b.body_force) {
         _ if b.hold_reference => (Condition::Reference, vec![0.0; dim]),
-        _ if b.hold_value.is_some() => (
-            Condition::Value,
-            vec![b.hold_value.map_or(0.0, |v| v.si())],
-        ),
+        _ if b.hold_value.is_some() => {
+            (Condition::Value, vec![b.hold_value.map_or(0.0, |v| v.si())])
+        }
         (Some(v), None, None) => (
             Condition::Velocity,
             point(v, dim, &format!("{path}.velocity"))?,
