@@ -115,21 +115,39 @@ impl<const D: usize> VectorOperator<D> {
         self.stencil_offsets.len() - 1
     }
 
-    /// Σ_j K_rj values[j] for row r.
+    /// Σ_j K_rj values[j] for row r. Four partial sums break the chain of dependent additions
+    /// (a row is latency-bound otherwise); they are added in a fixed order, so the result is
+    /// deterministic.
     #[inline]
     pub fn apply_row(&self, r: usize, values: &[[f64; D]]) -> [f64; D] {
-        let mut acc = [0.0; D];
+        const PARTIALS: usize = 4;
+        let mut acc = [[0.0; D]; PARTIALS];
         let columns = &self.columns[self.offsets[r]..self.offsets[r + 1]];
         let first = self.stencil_offsets[self.stencil_of[r] as usize];
-        for (&j, block) in columns.iter().zip(&self.blocks[first..]) {
+        let blocks = &self.blocks[first..first + columns.len()];
+        let add = |acc: &mut [f64; D], j: u32, block: &[[f64; D]; D]| {
             let u = &values[j as usize];
             for k in 0..D {
                 for l in 0..D {
                     acc[k] += block[k][l] * u[l];
                 }
             }
+        };
+        let column_chunks = columns.chunks_exact(PARTIALS);
+        let block_chunks = blocks.chunks_exact(PARTIALS);
+        for (&j, block) in column_chunks
+            .remainder()
+            .iter()
+            .zip(block_chunks.remainder())
+        {
+            add(&mut acc[0], j, block);
         }
-        acc
+        for (cs, bs) in column_chunks.zip(block_chunks) {
+            for p in 0..PARTIALS {
+                add(&mut acc[p], cs[p], &bs[p]);
+            }
+        }
+        std::array::from_fn(|k| (acc[0][k] + acc[1][k]) + (acc[2][k] + acc[3][k]))
     }
 
     /// out[r] = Σ_j K_rj values[j], one entry per row, in parallel; no allocation.
