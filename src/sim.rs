@@ -636,6 +636,8 @@ impl<const D: usize> Simulation<D> {
         scalars.push(("hybrid/chi".into(), h.spec.chi));
         scalars.push(("hybrid/violations".into(), violations));
         scalars.push(("hybrid/checked_bonds".into(), h.checked_bonds as f64));
+        scalars.push(("hybrid/full_checks".into(), h.full_checks as f64));
+        scalars.push(("hybrid/filtered_checks".into(), h.filtered_checks as f64));
         let ids = h.mask().iter().map(|&m| u16::from(m)).collect();
         (
             vec![ClassField {

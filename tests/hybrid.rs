@@ -292,3 +292,44 @@ fn collocation_check_policy_repairs_damage_that_reached_omega_w() {
     );
     assert_eq!(sim.enforce_hybrid_invariant(), 0, "all repaired");
 }
+
+/// The motion-bound filter of the switching check is exact: with it (the default) and without
+/// it (every check visits every bond), the Ω_s mask is the same after every step, for the
+/// `all` and `near` policies, and the filter does skip most checks' work.
+#[test]
+fn motion_filtered_check_switches_exactly_like_the_exhaustive_check() {
+    for check in ["all", "near"] {
+        let scene = load(
+            "kalthoff-winkler",
+            "small-hybrid",
+            &[&format!("hybrid.check=\"{check}\"")],
+        );
+        let mut filtered = Simulation::<2>::new(&scene).unwrap();
+        let mut exhaustive = Simulation::<2>::new(&scene).unwrap();
+        exhaustive.hybrid.as_mut().unwrap().exhaustive = true;
+        for step in 0..filtered.total_steps {
+            filtered.step().unwrap();
+            exhaustive.step().unwrap();
+            let (a, b) = (filtered.hybrid.as_ref(), exhaustive.hybrid.as_ref());
+            assert!(
+                a.unwrap().mask() == b.unwrap().mask(),
+                "{check}: masks differ after step {}",
+                step + 1
+            );
+        }
+        let h = filtered.hybrid.as_ref().unwrap();
+        let e = exhaustive.hybrid.as_ref().unwrap();
+        eprintln!(
+            "{check}: {} full and {} filtered checks; bonds visited {} against {}; Ω_s {:.4}",
+            h.full_checks,
+            h.filtered_checks,
+            h.checked_bonds,
+            e.checked_bonds,
+            h.standard_fraction()
+        );
+        assert!(h.standard_fraction() > h.initial_standard_fraction());
+        assert!(h.filtered_checks > h.full_checks);
+        assert!(h.checked_bonds < e.checked_bonds / 2);
+        assert_eq!(filtered.broken_bonds(), exhaustive.broken_bonds());
+    }
+}

@@ -12,6 +12,7 @@
 
 use rayon::prelude::*;
 
+use super::motion::MotionBound;
 use crate::family::{self, Families};
 use crate::model::pmb::PmbLaw;
 use crate::scene::{CheckSet, CrackGeometry, HybridSpec, Solid};
@@ -53,11 +54,22 @@ pub struct Hybrid<const D: usize> {
     /// bond it must check itself (may be conservatively true).
     scans_backward: Vec<bool>,
     check_bonds: u64,
+    /// Skips nodes whose bonds provably cannot be critical (policies `all` and `near`).
+    motion: Option<MotionBound<D>>,
+    /// Scratch of the filtered check: per check node, "may be critical"; the nodes so flagged.
+    flags: Vec<bool>,
+    flagged: Vec<u32>,
     standard_nodes: usize,
     initial_standard: usize,
     events: Vec<SwitchEvent>,
     /// Bond evaluations spent in switching checks so far.
     pub checked_bonds: u64,
+    /// Checks so far that visited every node (epochs of the motion bound) and that were
+    /// filtered by it.
+    pub full_checks: u64,
+    pub filtered_checks: u64,
+    /// Tests: every check visits every node (no motion filter), the reference behaviour.
+    pub exhaustive: bool,
 }
 
 /// Ω_s of the initial configuration: nodes within `band` of the body's boundary (sampled on
@@ -144,10 +156,19 @@ impl<const D: usize> Hybrid<D> {
                 .collect(),
             scans_backward: Vec::new(),
             check_bonds: 0,
+            motion: (spec.check != CheckSet::Collocation).then(|| {
+                let reach = families.lengths.iter().fold(0.0, |a: f64, &l| a.max(l));
+                MotionBound::new(reference, reach)
+            }),
+            flags: Vec::new(),
+            flagged: Vec::new(),
             standard_nodes,
             initial_standard: standard_nodes,
             events: Vec::new(),
             checked_bonds: 0,
+            full_checks: 0,
+            filtered_checks: 0,
+            exhaustive: false,
         };
         hybrid.rebuild_check_set(families);
         Ok(hybrid)
@@ -255,6 +276,123 @@ impl<const D: usize> Hybrid<D> {
         row.any_critical()
     }
 
+    /// Whether node `i` (in the check set) has a critical bond among those it checks.
+    fn node_critical(
+        &self,
+        i: usize,
+        reference: &[[f64; D]],
+        positions: &[[f64; D]],
+        families: &Families,
+        factor: f64,
+    ) -> bool {
+        let critical = |b: usize| {
+            let j = families.neighbors[b] as usize;
+            let (r2, l2) = bond_squares(i, j, reference, positions);
+            r2 >= factor * l2
+        };
+        self.mask[i] == WLS
+            && (self.forward_critical(i, reference, positions, families, factor)
+                || (self.scans_backward[i]
+                    && self
+                        .responsible_bonds(i, families)
+                        .take_while(|&b| b < self.forward_start[i])
+                        .any(critical)))
+    }
+
+    /// The check under the `all` and `near` policies, filtered by the motion bound: nodes whose
+    /// bound stays below their slack are skipped; the rest are checked exactly. When more than
+    /// a quarter would be checked (or χ changed), an epoch pass checks every node and records
+    /// fresh slacks. Returns the nodes with a critical bond.
+    fn critical_by_motion(
+        &mut self,
+        reference: &[[f64; D]],
+        positions: &[[f64; D]],
+        families: &Families,
+        factor: f64,
+    ) -> Vec<u32> {
+        let Some(mut motion) = self.motion.take() else {
+            return Vec::new();
+        };
+        let mut epoch = self.exhaustive || motion.needs_epoch(factor);
+        if !epoch {
+            motion.update(positions);
+            self.flags.resize(self.check_nodes.len(), false);
+            self.flags
+                .par_iter_mut()
+                .zip(self.check_nodes.par_iter())
+                .with_min_len(1024)
+                .for_each(|(f, &i)| *f = motion.may_reach(i as usize));
+            self.flagged.clear();
+            self.flagged.extend(
+                self.check_nodes
+                    .iter()
+                    .zip(&self.flags)
+                    .filter(|(_, f)| **f)
+                    .map(|(&i, _)| i),
+            );
+            epoch = self.flagged.len() * 4 > self.check_nodes.len();
+        }
+        let this = &*self;
+        let node_critical =
+            |&i: &u32| this.node_critical(i as usize, reference, positions, families, factor);
+        let critical = if epoch {
+            // Slack √f·l − r per node over the bonds it checks; then the exact test on the
+            // nodes whose slack is (about) exhausted, so the verdict is the plain check's.
+            let sqrt_f = factor.sqrt();
+            let tolerance = 1e-9 * families.lengths.first().copied().unwrap_or(0.0);
+            motion
+                .slack
+                .par_iter_mut()
+                .enumerate()
+                .with_min_len(1024)
+                .for_each(|(i, s)| {
+                    *s = if this.in_check[i] && this.mask[i] == WLS {
+                        this.responsible_bonds(i, families)
+                            .map(|b| {
+                                let j = families.neighbors[b] as usize;
+                                let (r2, l2) = bond_squares(i, j, reference, positions);
+                                sqrt_f * l2.sqrt() - r2.sqrt()
+                            })
+                            .fold(f64::INFINITY, f64::min)
+                    } else {
+                        f64::NEG_INFINITY
+                    };
+                });
+            let slack = &motion.slack;
+            let critical: Vec<u32> = this
+                .check_nodes
+                .par_iter()
+                .copied()
+                .filter(|&i| slack[i as usize] <= tolerance)
+                .filter(node_critical)
+                .collect();
+            motion.start_epoch(positions, factor);
+            self.checked_bonds += self.check_bonds;
+            self.full_checks += 1;
+            critical
+        } else {
+            let bonds: u64 = this
+                .flagged
+                .iter()
+                .map(|&i| this.responsible_bonds(i as usize, families).count() as u64)
+                .sum();
+            let critical = if this.flagged.par_iter().any(node_critical) {
+                this.flagged
+                    .par_iter()
+                    .copied()
+                    .filter(node_critical)
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            self.checked_bonds += bonds;
+            self.filtered_checks += 1;
+            critical
+        };
+        self.motion = Some(motion);
+        critical
+    }
+
     fn needs_backward_scan(&self, i: usize, families: &Families) -> bool {
         families.neighbors[families.range(i).start..self.forward_start[i]]
             .iter()
@@ -297,6 +435,9 @@ impl<const D: usize> Hybrid<D> {
             .into_par_iter()
             .map(|i| self.needs_backward_scan(i, families))
             .collect();
+        if let Some(m) = self.motion.as_mut() {
+            m.invalidate();
+        }
         self.check_bonds = self.bonds_to_check(families);
     }
 
@@ -350,11 +491,17 @@ impl<const D: usize> Hybrid<D> {
                 let i = families.neighbors[b] as usize;
                 if i > k as usize {
                     self.scans_backward[i] = true;
+                    if let Some(m) = self.motion.as_mut() {
+                        m.force(i);
+                    }
                 }
             }
         }
         for c in added {
             self.scans_backward[c] = self.needs_backward_scan(c, families);
+            if let Some(m) = self.motion.as_mut() {
+                m.force(c);
+            }
         }
         let in_check = &self.in_check;
         self.check_nodes.retain(|&i| in_check[i as usize]);
@@ -377,6 +524,12 @@ impl<const D: usize> Hybrid<D> {
         }
         // s ≥ χ s0  ⟺  r² ≥ (1 + χ s0)² l²: no square root on the common path.
         let factor = (1.0 + self.spec.chi * critical_stretch).powi(2);
+        let collocation = self.spec.check == CheckSet::Collocation;
+        let filtered = if collocation {
+            Vec::new()
+        } else {
+            self.critical_by_motion(reference, positions, families, factor)
+        };
         let mask = &self.mask;
         let is_critical = |i: usize, b: usize| {
             let j = families.neighbors[b] as usize;
@@ -389,7 +542,6 @@ impl<const D: usize> Hybrid<D> {
         // The collocation policy checks row r's columns of the WLS operator instead.
         let op = &self.wls;
         let row_of = &self.row_of;
-        let collocation = self.spec.check == CheckSet::Collocation;
         let critical_collocation = |i: usize, j: usize| {
             let (r2, l2): (f64, f64) = (0..D).fold((0.0, 0.0), |(r2, l2), k| {
                 (
@@ -406,37 +558,32 @@ impl<const D: usize> Hybrid<D> {
         let has_critical = |&i: &u32| {
             let i = i as usize;
             mask[i] == WLS
-                && if collocation {
-                    columns(i)
-                        .iter()
-                        .any(|&j| critical_collocation(i, j as usize))
-                } else {
-                    self.forward_critical(i, reference, positions, families, factor)
-                        || (self.scans_backward[i]
-                            && self
-                                .responsible_bonds(i, families)
-                                .take_while(|&b| b < self.forward_start[i])
-                                .any(|b| is_critical(i, b)))
-                }
+                && columns(i)
+                    .iter()
+                    .any(|&j| critical_collocation(i, j as usize))
         };
-        // The common case finds nothing: `any` allocates nothing; the nodes are listed only
-        // when there is something to switch.
-        let critical_nodes: Vec<u32> = if self
-            .check_nodes
-            .par_iter()
-            .with_min_len(256)
-            .any(has_critical)
-        {
-            self.check_nodes
+        let critical_nodes: Vec<u32> = if collocation {
+            // The common case finds nothing: `any` allocates nothing; the nodes are listed
+            // only when there is something to switch.
+            self.checked_bonds += self.check_bonds;
+            if self
+                .check_nodes
                 .par_iter()
                 .with_min_len(256)
-                .copied()
-                .filter(has_critical)
-                .collect()
+                .any(has_critical)
+            {
+                self.check_nodes
+                    .par_iter()
+                    .with_min_len(256)
+                    .copied()
+                    .filter(has_critical)
+                    .collect()
+            } else {
+                Vec::new()
+            }
         } else {
-            Vec::new()
+            filtered
         };
-        self.checked_bonds += self.check_bonds;
         let mut ends: Vec<u32> = Vec::new();
         for &i in &critical_nodes {
             let i = i as usize;
@@ -538,6 +685,23 @@ impl<const D: usize> Hybrid<D> {
             }
         }
     }
+}
+
+/// Squared current and reference lengths of bond (i, j).
+#[inline(always)]
+fn bond_squares<const D: usize>(
+    i: usize,
+    j: usize,
+    reference: &[[f64; D]],
+    positions: &[[f64; D]],
+) -> (f64, f64) {
+    (0..D).fold((0.0, 0.0), |(r2, l2), k| {
+        let (dy, dx) = (
+            positions[j][k] - positions[i][k],
+            reference[j][k] - reference[i][k],
+        );
+        (r2 + dy * dy, l2 + dx * dx)
+    })
 }
 
 /// One node's bonds for the switching check.

@@ -1,0 +1,174 @@
+//! A rigorous filter for the switching check (3.80): which nodes cannot have a critical bond.
+//!
+//! At an *epoch* every checked node i records its slack μ_i = min_j (√f·l_ij − r_ij) over the
+//! bonds it checks (f = (1 + χ s0)², r the current length), and the positions are kept. Later,
+//! with w = y − y_epoch the motion since then, a bond's length has changed by at most
+//! |w_j − w_i|. Nodes are binned in cells at least one family radius wide, so i and j lie in
+//! the same or adjacent cells; with a representative motion W_c and spread ρ_c = max |w_k − W_c|
+//! per cell, |w_j − w_i| ≤ ρ_c + |W_c − W_c'| + ρ_c' ≤ B_c. A node with B_c < μ_i has no bond
+//! that can have reached χ·s0, whatever happened in between: only the others are checked
+//! exactly. Rigid motion cancels (W is subtracted), so quiet regions cost O(1) per node.
+
+use rayon::prelude::*;
+
+pub struct MotionBound<const D: usize> {
+    cell_size: f64,
+    dims: [usize; D],
+    /// Node → its cell; cells' nodes in CSR form.
+    cell_of: Vec<u32>,
+    cell_offsets: Vec<usize>,
+    cell_nodes: Vec<u32>,
+    /// Positions at the epoch, and each node's slack (m); −∞ forces an exact check.
+    epoch: Vec<[f64; D]>,
+    pub slack: Vec<f64>,
+    /// Per cell: representative motion, spread, and the bound B_c.
+    representative: Vec<[f64; D]>,
+    spread: Vec<f64>,
+    bound: Vec<f64>,
+    /// The f the slacks were computed with (None: no epoch yet, or invalidated).
+    factor: Option<f64>,
+}
+
+impl<const D: usize> MotionBound<D> {
+    /// Cells of side `reach` (≥ the longest bond) over the reference positions.
+    pub fn new(reference: &[[f64; D]], reach: f64) -> Self {
+        let mut lo = [f64::INFINITY; D];
+        let mut hi = [f64::NEG_INFINITY; D];
+        for x in reference {
+            for k in 0..D {
+                lo[k] = lo[k].min(x[k]);
+                hi[k] = hi[k].max(x[k]);
+            }
+        }
+        let cell_size = reach * (1.0 + 1e-9);
+        let dims: [usize; D] =
+            std::array::from_fn(|k| (((hi[k] - lo[k]) / cell_size).floor() as usize + 1).max(1));
+        let cell_of: Vec<u32> = reference
+            .iter()
+            .map(|x| {
+                (0..D).rev().fold(0usize, |acc, k| {
+                    let c = (((x[k] - lo[k]) / cell_size).floor() as usize).min(dims[k] - 1);
+                    acc * dims[k] + c
+                }) as u32
+            })
+            .collect();
+        let cells: usize = dims.iter().product();
+        let mut cell_offsets = vec![0usize; cells + 1];
+        for &c in &cell_of {
+            cell_offsets[c as usize + 1] += 1;
+        }
+        for c in 0..cells {
+            cell_offsets[c + 1] += cell_offsets[c];
+        }
+        let mut fill = cell_offsets.clone();
+        let mut cell_nodes = vec![0u32; reference.len()];
+        for (i, &c) in cell_of.iter().enumerate() {
+            cell_nodes[fill[c as usize]] = i as u32;
+            fill[c as usize] += 1;
+        }
+        MotionBound {
+            cell_size,
+            dims,
+            cell_of,
+            cell_offsets,
+            cell_nodes,
+            epoch: reference.to_vec(),
+            slack: vec![f64::NEG_INFINITY; reference.len()],
+            representative: vec![[0.0; D]; cells],
+            spread: vec![0.0; cells],
+            bound: vec![0.0; cells],
+            factor: None,
+        }
+    }
+
+    /// Whether the slacks are stale for this f (χ changed, or never computed).
+    pub fn needs_epoch(&self, factor: f64) -> bool {
+        self.factor != Some(factor)
+    }
+
+    pub fn invalidate(&mut self) {
+        self.factor = None;
+    }
+
+    /// Starts an epoch at `positions`; the caller has filled `slack` for f = `factor`.
+    pub fn start_epoch(&mut self, positions: &[[f64; D]], factor: f64) {
+        self.epoch.copy_from_slice(positions);
+        self.factor = Some(factor);
+    }
+
+    /// Forces node i's exact check until the next epoch (its checked bonds changed).
+    pub fn force(&mut self, i: usize) {
+        self.slack[i] = f64::NEG_INFINITY;
+    }
+
+    /// Recomputes the per-cell bounds B_c for the motion since the epoch.
+    pub fn update(&mut self, positions: &[[f64; D]]) {
+        let (offsets, nodes, epoch) = (&self.cell_offsets, &self.cell_nodes, &self.epoch);
+        let motion =
+            |k: usize| -> [f64; D] { std::array::from_fn(|a| positions[k][a] - epoch[k][a]) };
+        self.representative
+            .par_iter_mut()
+            .zip(self.spread.par_iter_mut())
+            .enumerate()
+            .for_each(|(c, (rep, spread))| {
+                let members = &nodes[offsets[c]..offsets[c + 1]];
+                let Some(&first) = members.first() else {
+                    *spread = 0.0;
+                    return;
+                };
+                *rep = motion(first as usize);
+                *spread = members
+                    .iter()
+                    .map(|&k| distance(&motion(k as usize), rep))
+                    .fold(0.0, f64::max);
+            });
+        let (dims, reps, spread) = (self.dims, &self.representative, &self.spread);
+        self.bound
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(c, bound)| {
+                let at = unflatten(c, &dims);
+                let mut far = 0.0f64;
+                for code in 0..3usize.pow(D as u32) {
+                    let mut rest = code;
+                    let mut other = 0usize;
+                    let mut inside = true;
+                    for k in (0..D).rev() {
+                        let step = (rest % 3) as isize - 1;
+                        rest /= 3;
+                        let v = at[k] as isize + step;
+                        inside &= v >= 0 && (v as usize) < dims[k];
+                        other = other * dims[k] + v.max(0) as usize;
+                    }
+                    if inside && offsets[other] < offsets[other + 1] {
+                        far = far.max(spread[other] + distance(&reps[other], &reps[c]));
+                    }
+                }
+                *bound = spread[c] + far;
+            });
+    }
+
+    /// Whether node i may have a critical bond (its bound reaches its slack); true for stale or
+    /// forced slacks. A relative 1e-12 of the cell size covers rounding in w and the slack.
+    #[inline]
+    pub fn may_reach(&self, i: usize) -> bool {
+        let bound = self.bound[self.cell_of[i] as usize] + 1e-12 * self.cell_size;
+        !(bound < self.slack[i])
+    }
+}
+
+fn distance<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
+    (0..D)
+        .map(|k| (a[k] - b[k]) * (a[k] - b[k]))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Cell coordinates of a flat index (axis 0 fastest).
+fn unflatten<const D: usize>(mut c: usize, dims: &[usize; D]) -> [usize; D] {
+    std::array::from_fn(|k| {
+        let v = c % dims[k];
+        c /= dims[k];
+        v
+    })
+}
