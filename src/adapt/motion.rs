@@ -148,12 +148,12 @@ impl<const D: usize> MotionBound<D> {
             });
     }
 
-    /// Whether node i may have a critical bond (its bound reaches its slack); true for stale or
-    /// forced slacks. A relative 1e-12 of the cell size covers rounding in w and the slack.
+    /// Whether node i may have a critical bond (its bound reaches its slack); true for forced
+    /// slacks (−∞) and non-finite motion. A relative 1e-12 of the cell size covers rounding in w and the slack.
     #[inline]
     pub fn may_reach(&self, i: usize) -> bool {
         let bound = self.bound[self.cell_of[i] as usize] + 1e-12 * self.cell_size;
-        !(bound < self.slack[i])
+        bound.is_nan() || bound >= self.slack[i]
     }
 }
 
