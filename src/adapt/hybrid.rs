@@ -251,8 +251,7 @@ impl<const D: usize> Hybrid<D> {
 
     /// Whether a bond from `i` to a higher-index neighbour is critical: the hot loop of the
     /// check. It streams only the neighbour indices (the bond lengths come from the
-    /// cache-resident reference positions) and runs branch-free in lanes of four, compiled for
-    /// AVX2 where the CPU has it.
+    /// cache-resident reference positions) and runs branch-free over the row.
     fn forward_critical(
         &self,
         i: usize,
@@ -261,19 +260,12 @@ impl<const D: usize> Hybrid<D> {
         families: &Families,
         factor: f64,
     ) -> bool {
-        let row = Row {
-            i,
-            neighbors: &families.neighbors[self.forward_start[i]..families.offsets[i + 1]],
-            reference,
-            positions,
-            factor,
-        };
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2 (detected just above).
-            return unsafe { row.any_critical_avx2() };
-        }
-        row.any_critical()
+        families.neighbors[self.forward_start[i]..families.offsets[i + 1]]
+            .iter()
+            .fold(false, |found, &j| {
+                let (r2, l2) = bond_squares(i, j as usize, reference, positions);
+                found | (r2 >= factor * l2)
+            })
     }
 
     /// Whether node `i` (in the check set) has a critical bond among those it checks.
@@ -543,12 +535,7 @@ impl<const D: usize> Hybrid<D> {
         let op = &self.wls;
         let row_of = &self.row_of;
         let critical_collocation = |i: usize, j: usize| {
-            let (r2, l2): (f64, f64) = (0..D).fold((0.0, 0.0), |(r2, l2), k| {
-                (
-                    r2 + (positions[j][k] - positions[i][k]).powi(2),
-                    l2 + (reference[j][k] - reference[i][k]).powi(2),
-                )
-            });
+            let (r2, l2) = bond_squares(i, j, reference, positions);
             j != i && r2 >= factor * l2
         };
         let columns = |i: usize| {
@@ -702,41 +689,4 @@ fn bond_squares<const D: usize>(
         );
         (r2 + dy * dy, l2 + dx * dx)
     })
-}
-
-/// One node's bonds for the switching check.
-struct Row<'a, const D: usize> {
-    i: usize,
-    neighbors: &'a [u32],
-    reference: &'a [[f64; D]],
-    positions: &'a [[f64; D]],
-    /// (1 + χ s0)²: a bond is critical when r² ≥ factor · l².
-    factor: f64,
-}
-
-impl<const D: usize> Row<'_, D> {
-    #[inline(always)]
-    fn any_critical(&self) -> bool {
-        let (xi, yi) = (self.reference[self.i], self.positions[self.i]);
-        let excess = |j: u32| {
-            let (xj, yj) = (self.reference[j as usize], self.positions[j as usize]);
-            let (mut r2, mut l2) = (0.0, 0.0);
-            for k in 0..D {
-                let (dy, dx) = (yj[k] - yi[k], xj[k] - xi[k]);
-                r2 += dy * dy;
-                l2 += dx * dx;
-            }
-            r2 - self.factor * l2
-        };
-        self.neighbors
-            .iter()
-            .fold(false, |found, &j| found | (excess(j) >= 0.0))
-    }
-
-    /// [`Self::any_critical`] compiled for AVX2 (the lane loop becomes 4-wide).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx,avx2")]
-    fn any_critical_avx2(&self) -> bool {
-        self.any_critical()
-    }
 }
