@@ -249,26 +249,10 @@ impl<const D: usize> Hybrid<D> {
             .chain(self.forward_start[i]..range.end)
     }
 
-    /// Whether a bond from `i` to a higher-index neighbour is critical: the hot loop of the
-    /// check. It streams only the neighbour indices (the bond lengths come from the
-    /// cache-resident reference positions) and runs branch-free over the row.
-    fn forward_critical(
-        &self,
-        i: usize,
-        reference: &[[f64; D]],
-        positions: &[[f64; D]],
-        families: &Families,
-        factor: f64,
-    ) -> bool {
-        families.neighbors[self.forward_start[i]..families.offsets[i + 1]]
-            .iter()
-            .fold(false, |found, &j| {
-                let (r2, l2) = bond_squares(i, j as usize, reference, positions);
-                found | (r2 >= factor * l2)
-            })
-    }
-
-    /// Whether node `i` (in the check set) has a critical bond among those it checks.
+    /// Whether node `i` (in the check set) has a critical bond among those it checks. The hot
+    /// loop runs over its higher-index neighbours branch-free, streaming only their indices
+    /// (bond lengths come from the cache-resident reference positions); the lower-index ones
+    /// outside the check set follow when the node has any.
     fn node_critical(
         &self,
         i: usize,
@@ -277,18 +261,23 @@ impl<const D: usize> Hybrid<D> {
         families: &Families,
         factor: f64,
     ) -> bool {
-        let critical = |b: usize| {
-            let j = families.neighbors[b] as usize;
+        let critical = |j: usize| {
             let (r2, l2) = bond_squares(i, j, reference, positions);
             r2 >= factor * l2
         };
-        self.mask[i] == WLS
-            && (self.forward_critical(i, reference, positions, families, factor)
-                || (self.scans_backward[i]
-                    && self
-                        .responsible_bonds(i, families)
-                        .take_while(|&b| b < self.forward_start[i])
-                        .any(critical)))
+        let forward = || {
+            families.neighbors[self.forward_start[i]..families.offsets[i + 1]]
+                .iter()
+                .fold(false, |found, &j| found | critical(j as usize))
+        };
+        let backward = || {
+            self.scans_backward[i]
+                && self
+                    .responsible_bonds(i, families)
+                    .take_while(|&b| b < self.forward_start[i])
+                    .any(|b| critical(families.neighbors[b] as usize))
+        };
+        self.mask[i] == WLS && (forward() || backward())
     }
 
     /// The check under the `all` and `near` policies, filtered by the motion bound: nodes whose
