@@ -340,13 +340,17 @@ impl<const D: usize> Hybrid<D> {
                     };
                 });
             let slack = &motion.slack;
-            let critical: Vec<u32> = this
-                .check_nodes
-                .par_iter()
-                .copied()
-                .filter(|&i| slack[i as usize] <= tolerance)
-                .filter(node_critical)
-                .collect();
+            let exhausted = |i: &u32| slack[*i as usize] <= tolerance && node_critical(i);
+            // Listed (allocated) only when something is critical.
+            let critical: Vec<u32> = if this.check_nodes.par_iter().any(exhausted) {
+                this.check_nodes
+                    .par_iter()
+                    .copied()
+                    .filter(exhausted)
+                    .collect()
+            } else {
+                Vec::new()
+            };
             motion.start_epoch(positions, factor);
             self.checked_bonds += self.check_bonds;
             self.full_checks += 1;
