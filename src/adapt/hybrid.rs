@@ -516,31 +516,21 @@ impl<const D: usize> Hybrid<D> {
             self.critical_by_motion(reference, positions, families, factor)
         };
         let mask = &self.mask;
-        let is_critical = |i: usize, b: usize| {
-            let j = families.neighbors[b] as usize;
-            let r2: f64 = (0..D)
-                .map(|k| (positions[j][k] - positions[i][k]).powi(2))
-                .sum();
-            let l = families.lengths[b];
-            r2 >= factor * l * l
+        // One criterion for every path (a collocation row also lists the node itself).
+        let bond_critical = |i: usize, j: usize| {
+            let (r2, l2) = bond_squares(i, j, reference, positions);
+            j != i && r2 >= factor * l2
         };
         // The collocation policy checks row r's columns of the WLS operator instead.
         let op = &self.wls;
         let row_of = &self.row_of;
-        let critical_collocation = |i: usize, j: usize| {
-            let (r2, l2) = bond_squares(i, j, reference, positions);
-            j != i && r2 >= factor * l2
-        };
         let columns = |i: usize| {
             let r = row_of[i] as usize;
             &op.columns[op.offsets[r]..op.offsets[r + 1]]
         };
         let has_critical = |&i: &u32| {
             let i = i as usize;
-            mask[i] == WLS
-                && columns(i)
-                    .iter()
-                    .any(|&j| critical_collocation(i, j as usize))
+            mask[i] == WLS && columns(i).iter().any(|&j| bond_critical(i, j as usize))
         };
         let critical_nodes: Vec<u32> = if collocation {
             // The common case finds nothing: `any` allocates nothing; the nodes are listed
@@ -569,14 +559,14 @@ impl<const D: usize> Hybrid<D> {
             let i = i as usize;
             if collocation {
                 for &j in columns(i) {
-                    if critical_collocation(i, j as usize) {
+                    if bond_critical(i, j as usize) {
                         ends.extend([i as u32, j]);
                     }
                 }
             } else {
                 for b in self
                     .responsible_bonds(i, families)
-                    .filter(|&b| is_critical(i, b))
+                    .filter(|&b| bond_critical(i, families.neighbors[b] as usize))
                 {
                     ends.extend([i as u32, families.neighbors[b]]);
                 }
