@@ -17,6 +17,7 @@ use crate::family::{self, Families};
 use crate::model::pmb::PmbLaw;
 use crate::scene::{CheckSet, CrackGeometry, HybridSpec, Solid};
 use crate::scheme::VectorOperator;
+use crate::scheme::runs::RowRuns;
 use crate::scheme::standard::NodeTerms;
 use crate::scheme::wls::{self, Basis, FitError};
 
@@ -42,8 +43,11 @@ pub struct Hybrid<const D: usize> {
     wls: VectorOperator<D>,
     /// Node → its row in `wls` (u32::MAX for nodes that started in Ω_s).
     row_of: Vec<u32>,
+    /// The translation runs of `wls` (the fast path of its product).
+    runs: RowRuns,
     wls_force: Vec<[f64; D]>,
-    displacement: Vec<[f64; D]>,
+    /// u = y − x by components (the runs' loads are contiguous).
+    displacement: [Vec<f64>; D],
     /// Ω_w nodes whose bonds the switching check visits, and their bond count.
     check_nodes: Vec<u32>,
     in_check: Vec<bool>,
@@ -141,8 +145,9 @@ impl<const D: usize> Hybrid<D> {
         let mask_len = mask.len();
         let mut hybrid = Hybrid {
             spec,
+            runs: RowRuns::new(&wls),
             wls_force: vec![[0.0; D]; rows.len()],
-            displacement: vec![[0.0; D]; mask.len()],
+            displacement: std::array::from_fn(|_| vec![0.0; mask.len()]),
             mask,
             wls,
             row_of,
@@ -633,27 +638,32 @@ impl<const D: usize> Hybrid<D> {
         positions: &[[f64; D]],
         terms: &mut [NodeTerms<D>],
     ) {
-        self.displacement
+        for (k, u) in self.displacement.iter_mut().enumerate() {
+            u.par_iter_mut()
+                .zip(positions.par_iter().zip(reference))
+                .with_min_len(4096)
+                .for_each(|(u, (y, x))| *u = y[k] - x[k]);
+        }
+        let (op, mask) = (&self.wls, &self.mask);
+        let u: [&[f64]; D] = std::array::from_fn(|k| self.displacement[k].as_slice());
+        self.runs.apply(
+            op,
+            u,
+            |r| mask[op.rows[r] as usize] == WLS,
+            &mut self.wls_force,
+        );
+        let (force, row_of) = (&self.wls_force, &self.row_of);
+        terms
             .par_iter_mut()
-            .zip(positions.par_iter().zip(reference))
-            .for_each(|(u, (y, x))| *u = std::array::from_fn(|k| y[k] - x[k]));
-        let (op, mask, u) = (&self.wls, &self.mask, &self.displacement);
-        self.wls_force
-            .par_iter_mut()
+            .zip(mask.par_iter())
             .enumerate()
-            .for_each(|(r, f)| {
-                if mask[op.rows[r] as usize] == WLS {
-                    *f = op.apply_row(r, u);
+            .with_min_len(4096)
+            .for_each(|(i, (t, &m))| {
+                if m == WLS {
+                    t.force = force[row_of[i] as usize];
+                    t.energy_density = 0.0;
                 }
             });
-        for (r, &i) in op.rows.iter().enumerate() {
-            let i = i as usize;
-            if mask[i] == WLS {
-                let f = self.wls_force[r];
-                terms[i].force = f;
-                terms[i].energy_density = 0.0;
-            }
-        }
     }
 }
 

@@ -2,6 +2,7 @@
 
 use rayon::prelude::*;
 
+pub mod runs;
 pub mod standard;
 pub mod wls;
 
@@ -115,18 +116,24 @@ impl<const D: usize> VectorOperator<D> {
         self.stencil_offsets.len() - 1
     }
 
-    /// Σ_j K_rj values[j] for row r. Four partial sums break the chain of dependent additions
-    /// (a row is latency-bound otherwise); they are added in a fixed order, so the result is
-    /// deterministic.
+    /// Σ_j K_rj values[j] for row r.
     #[inline]
     pub fn apply_row(&self, r: usize, values: &[[f64; D]]) -> [f64; D] {
+        self.apply_row_with(r, |j| values[j])
+    }
+
+    /// Σ_j K_rj value(j) for row r. Four partial sums break the chain of dependent additions
+    /// (a row is latency-bound otherwise); they are added in a fixed order, so the result is
+    /// deterministic.
+    #[inline(always)]
+    pub fn apply_row_with(&self, r: usize, value: impl Fn(usize) -> [f64; D]) -> [f64; D] {
         const PARTIALS: usize = 4;
         let mut acc = [[0.0; D]; PARTIALS];
         let columns = &self.columns[self.offsets[r]..self.offsets[r + 1]];
         let first = self.stencil_offsets[self.stencil_of[r] as usize];
         let blocks = &self.blocks[first..first + columns.len()];
         let add = |acc: &mut [f64; D], j: u32, block: &[[f64; D]; D]| {
-            let u = &values[j as usize];
+            let u = value(j as usize);
             for k in 0..D {
                 for l in 0..D {
                     acc[k] += block[k][l] * u[l];

@@ -218,7 +218,7 @@ pub fn collocation_set<const D: usize>(
         let j = candidates[slot] as usize;
         (0..D).map(|a| (positions[j][a] - target[a]).powi(2)).sum()
     };
-    let closer = |a: &(f64, usize), b: &(f64, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+    let closer = |a: &(f64, usize), b: &(f64, usize)| nearer(a, b, h);
     let exact_within = (1.5 * h).powi(2);
     let mut index = [-k; D];
     'grid: loop {
@@ -265,6 +265,19 @@ pub fn collocation_set<const D: usize>(
         break;
     }
     chosen
+}
+
+/// Order of two (squared distance, slot) candidates of a collocation target on an auxiliary
+/// grid of spacing h. Distances equal to 10⁻¹⁰ h² are ties, and ties go to the lower slot (the
+/// lower node index): on a uniform lattice the geometric ties then break the same way at every
+/// node, whatever the rounding of its absolute coordinates, so translated nodes get translated
+/// collocation sets in the same order (one shared stencil, and the product's fast runs).
+fn nearer(a: &(f64, usize), b: &(f64, usize), h: f64) -> std::cmp::Ordering {
+    if (a.0 - b.0).abs() <= 1e-10 * h * h {
+        a.1.cmp(&b.1)
+    } else {
+        a.0.total_cmp(&b.0)
+    }
 }
 
 /// Why a node's WLS fit cannot be used.
@@ -601,7 +614,7 @@ mod tests {
                         let d2: f64 = (0..D).map(|a| (positions[j][a] - target[a]).powi(2)).sum();
                         (d2, s)
                     })
-                    .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                    .min_by(|a, b| super::nearer(a, b, h));
                 if let Some((_, s)) = best {
                     taken[s] = true;
                     chosen.push(candidates[s]);
