@@ -60,8 +60,7 @@ pub struct Hybrid<const D: usize> {
     check_bonds: u64,
     /// Skips nodes whose bonds provably cannot be critical (policies `all` and `near`).
     motion: Option<MotionBound<D>>,
-    /// Scratch of the filtered check: per check node, "may be critical"; the nodes so flagged.
-    flags: Vec<bool>,
+    /// Scratch of the filtered check: the nodes that may have a critical bond.
     flagged: Vec<u32>,
     standard_nodes: usize,
     initial_standard: usize,
@@ -165,7 +164,6 @@ impl<const D: usize> Hybrid<D> {
                 let reach = families.lengths.iter().fold(0.0, |a: f64, &l| a.max(l));
                 MotionBound::new(reference, reach)
             }),
-            flags: Vec::new(),
             flagged: Vec::new(),
             standard_nodes,
             initial_standard: standard_nodes,
@@ -219,21 +217,22 @@ impl<const D: usize> Hybrid<D> {
 
     /// Bonds one check visits under the policy.
     fn bonds_to_check(&self, families: &Families) -> u64 {
-        let op = &self.wls;
         self.check_nodes
             .par_iter()
-            .map(|&i| {
-                let i = i as usize;
-                if self.spec.check == CheckSet::Collocation {
-                    let r = self.row_of[i] as usize;
-                    (op.offsets[r + 1] - op.offsets[r]) as u64 - 1
-                } else if self.scans_backward[i] {
-                    self.responsible_bonds(i, families).count() as u64
-                } else {
-                    (families.offsets[i + 1] - self.forward_start[i]) as u64
-                }
-            })
+            .map(|&i| self.bond_count(i as usize, families))
             .sum()
+    }
+
+    /// Bonds node `i`'s check visits under the policy.
+    fn bond_count(&self, i: usize, families: &Families) -> u64 {
+        if self.spec.check == CheckSet::Collocation {
+            let (op, r) = (&self.wls, self.row_of[i] as usize);
+            (op.offsets[r + 1] - op.offsets[r]) as u64 - 1
+        } else if self.scans_backward[i] {
+            self.responsible_bonds(i, families).count() as u64
+        } else {
+            (families.offsets[i + 1] - self.forward_start[i]) as u64
+        }
     }
 
     /// The bonds node `i` (in the check set) checks: those to higher-index neighbours, and to
@@ -254,35 +253,37 @@ impl<const D: usize> Hybrid<D> {
             .chain(self.forward_start[i]..range.end)
     }
 
-    /// Whether node `i` (in the check set) has a critical bond among those it checks. The hot
-    /// loop runs over its higher-index neighbours branch-free, streaming only their indices
-    /// (bond lengths come from the cache-resident reference positions); the lower-index ones
-    /// outside the check set follow when the node has any.
-    fn node_critical(
-        &self,
-        i: usize,
-        reference: &[[f64; D]],
-        positions: &[[f64; D]],
-        families: &Families,
-        factor: f64,
-    ) -> bool {
-        let critical = |j: usize| {
-            let (r2, l2) = bond_squares(i, j, reference, positions);
-            r2 >= factor * l2
-        };
-        let forward = || {
-            families.neighbors[self.forward_start[i]..families.offsets[i + 1]]
-                .iter()
-                .fold(false, |found, &j| found | critical(j as usize))
-        };
-        let backward = || {
-            self.scans_backward[i]
-                && self
-                    .responsible_bonds(i, families)
-                    .take_while(|&b| b < self.forward_start[i])
-                    .any(|b| critical(families.neighbors[b] as usize))
-        };
-        self.mask[i] == WLS && (forward() || backward())
+    /// The least g(r², l²) over the bonds node `i` (in the check set) checks (+∞ if none), r
+    /// and l a bond's current and reference lengths. The hot loop runs over the higher-index
+    /// neighbours in SIMD lanes, streaming only their indices (bond lengths come from the
+    /// cache-resident reference positions); the lower-index ones outside the check set follow
+    /// when the node has any.
+    #[inline(always)]
+    fn node_least(&self, i: usize, bonds: &BondView<D>, g: impl Fn(f64, f64) -> f64 + Copy) -> f64 {
+        let families = bonds.families;
+        let forward = &families.neighbors[self.forward_start[i]..families.offsets[i + 1]];
+        let mut least = bonds.least(i, forward, g);
+        if self.scans_backward[i] {
+            for b in self
+                .responsible_bonds(i, families)
+                .take_while(|&b| b < self.forward_start[i])
+            {
+                let (r2, l2) = bond_squares(
+                    i,
+                    families.neighbors[b] as usize,
+                    bonds.reference,
+                    bonds.positions,
+                );
+                least = lesser(least, g(r2, l2));
+            }
+        }
+        least
+    }
+
+    /// Whether Ω_w node `i` (in the check set) has a critical bond, r² ≥ f l², among those it
+    /// checks (f l² − r² has the sign of the exact difference, so "least ≤ 0" is that test).
+    fn node_critical(&self, i: usize, bonds: &BondView<D>, factor: f64) -> bool {
+        self.mask[i] == WLS && self.node_least(i, bonds, move |r2, l2| factor * l2 - r2) <= 0.0
     }
 
     /// The check under the `all` and `near` policies, filtered by the motion bound: nodes whose
@@ -302,28 +303,18 @@ impl<const D: usize> Hybrid<D> {
         let mut epoch = self.exhaustive || motion.needs_epoch(factor);
         if !epoch {
             motion.update(positions);
-            self.flags.resize(self.check_nodes.len(), false);
-            self.flags
-                .par_iter_mut()
-                .zip(self.check_nodes.par_iter())
-                .with_min_len(1024)
-                .for_each(|(f, &i)| *f = motion.may_reach(i as usize));
             self.flagged.clear();
-            self.flagged.extend(
-                self.check_nodes
-                    .iter()
-                    .zip(&self.flags)
-                    .filter(|(_, f)| **f)
-                    .map(|(&i, _)| i),
-            );
+            let (in_check, mask) = (&self.in_check, &self.mask);
+            motion.flag(|k| in_check[k] && mask[k] == WLS, &mut self.flagged);
             epoch = self.flagged.len() * 4 > self.check_nodes.len();
         }
         let this = &*self;
-        let node_critical =
-            |&i: &u32| this.node_critical(i as usize, reference, positions, families, factor);
+        let bonds = BondView::new(reference, positions, families);
+        let node_critical = |&i: &u32| this.node_critical(i as usize, &bonds, factor);
         let critical = if epoch {
-            // Slack √f·l − r per node over the bonds it checks; then the exact test on the
-            // nodes whose slack is (about) exhausted, so the verdict is the plain check's.
+            // Slack √f·l − r per node over the bonds it checks (+∞ off the check set); then
+            // the exact test on the nodes whose slack is (about) exhausted, so the verdict is
+            // the plain check's.
             let sqrt_f = factor.sqrt();
             let tolerance = 1e-9 * families.lengths.first().copied().unwrap_or(0.0);
             motion
@@ -333,15 +324,9 @@ impl<const D: usize> Hybrid<D> {
                 .with_min_len(1024)
                 .for_each(|(i, s)| {
                     *s = if this.in_check[i] && this.mask[i] == WLS {
-                        this.responsible_bonds(i, families)
-                            .map(|b| {
-                                let j = families.neighbors[b] as usize;
-                                let (r2, l2) = bond_squares(i, j, reference, positions);
-                                sqrt_f * l2.sqrt() - r2.sqrt()
-                            })
-                            .fold(f64::INFINITY, f64::min)
+                        this.node_least(i, &bonds, |r2, l2| sqrt_f * l2.sqrt() - r2.sqrt())
                     } else {
-                        f64::NEG_INFINITY
+                        f64::INFINITY
                     };
                 });
             let slack = &motion.slack;
@@ -361,10 +346,10 @@ impl<const D: usize> Hybrid<D> {
             self.full_checks += 1;
             critical
         } else {
-            let bonds: u64 = this
+            let counted: u64 = this
                 .flagged
                 .iter()
-                .map(|&i| this.responsible_bonds(i as usize, families).count() as u64)
+                .map(|&i| this.bond_count(i as usize, families))
                 .sum();
             let critical = if this.flagged.par_iter().any(node_critical) {
                 this.flagged
@@ -375,7 +360,7 @@ impl<const D: usize> Hybrid<D> {
             } else {
                 Vec::new()
             };
-            self.checked_bonds += bonds;
+            self.checked_bonds += counted;
             self.filtered_checks += 1;
             critical
         };
@@ -665,6 +650,83 @@ impl<const D: usize> Hybrid<D> {
                 }
             });
     }
+}
+
+/// The bond data a check reads, and whether the CPU runs its lanes 4-wide.
+struct BondView<'a, const D: usize> {
+    reference: &'a [[f64; D]],
+    positions: &'a [[f64; D]],
+    families: &'a Families,
+    #[cfg(target_arch = "x86_64")]
+    avx2: bool,
+}
+
+impl<'a, const D: usize> BondView<'a, D> {
+    fn new(reference: &'a [[f64; D]], positions: &'a [[f64; D]], families: &'a Families) -> Self {
+        BondView {
+            reference,
+            positions,
+            families,
+            #[cfg(target_arch = "x86_64")]
+            avx2: std::arch::is_x86_feature_detected!("avx2"),
+        }
+    }
+
+    /// The least g(r², l²) over bonds (i, j), j in `neighbors`.
+    #[inline(always)]
+    fn least(&self, i: usize, neighbors: &[u32], g: impl Fn(f64, f64) -> f64) -> f64 {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU supports AVX2 (detected in `new`).
+            return unsafe { least_avx2(i, neighbors, self.reference, self.positions, g) };
+        }
+        least_portable(i, neighbors, self.reference, self.positions, g)
+    }
+}
+
+/// `least_portable` compiled for AVX2 (4-wide lanes, no FMA: bit-identical results).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2")]
+fn least_avx2<const D: usize>(
+    i: usize,
+    neighbors: &[u32],
+    reference: &[[f64; D]],
+    positions: &[[f64; D]],
+    g: impl Fn(f64, f64) -> f64,
+) -> f64 {
+    least_portable(i, neighbors, reference, positions, g)
+}
+
+/// Minimum of g over the bonds in `LANES` independent lanes (a min reduction does not
+/// vectorize otherwise); NaN values are ignored, as by `f64::min`.
+#[inline(always)]
+fn least_portable<const D: usize>(
+    i: usize,
+    neighbors: &[u32],
+    reference: &[[f64; D]],
+    positions: &[[f64; D]],
+    g: impl Fn(f64, f64) -> f64,
+) -> f64 {
+    const LANES: usize = 4;
+    let mut lanes = [f64::INFINITY; LANES];
+    let chunks = neighbors.chunks_exact(LANES);
+    for &j in chunks.remainder() {
+        let (r2, l2) = bond_squares(i, j as usize, reference, positions);
+        lanes[0] = lesser(lanes[0], g(r2, l2));
+    }
+    for chunk in chunks {
+        for t in 0..LANES {
+            let (r2, l2) = bond_squares(i, chunk[t] as usize, reference, positions);
+            lanes[t] = lesser(lanes[t], g(r2, l2));
+        }
+    }
+    lanes.into_iter().fold(f64::INFINITY, lesser)
+}
+
+/// min(a, v) for a non-NaN a, ignoring a NaN v; branch-free (a SIMD min).
+#[inline(always)]
+fn lesser(a: f64, v: f64) -> f64 {
+    if v < a { v } else { a }
 }
 
 /// Squared current and reference lengths of bond (i, j).

@@ -25,6 +25,9 @@ pub struct MotionBound<const D: usize> {
     representative: Vec<[f64; D]>,
     spread: Vec<f64>,
     bound: Vec<f64>,
+    /// Per cell: the least slack of its nodes (a cell whose bound stays below it is skipped
+    /// without visiting its nodes).
+    least_slack: Vec<f64>,
     /// The f the slacks were computed with (None: no epoch yet, or invalidated).
     factor: Option<f64>,
 }
@@ -77,6 +80,7 @@ impl<const D: usize> MotionBound<D> {
             representative: vec![[0.0; D]; cells],
             spread: vec![0.0; cells],
             bound: vec![0.0; cells],
+            least_slack: vec![f64::NEG_INFINITY; cells],
             factor: None,
         }
     }
@@ -90,15 +94,41 @@ impl<const D: usize> MotionBound<D> {
         self.factor = None;
     }
 
-    /// Starts an epoch at `positions`; the caller has filled `slack` for f = `factor`.
+    /// Starts an epoch at `positions`; the caller has filled `slack` for f = `factor` (+∞ for
+    /// nodes it never asks about).
     pub fn start_epoch(&mut self, positions: &[[f64; D]], factor: f64) {
         self.epoch.copy_from_slice(positions);
         self.factor = Some(factor);
+        let (offsets, nodes, slack) = (&self.cell_offsets, &self.cell_nodes, &self.slack);
+        self.least_slack
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(c, least)| {
+                *least = nodes[offsets[c]..offsets[c + 1]]
+                    .iter()
+                    .map(|&k| slack[k as usize])
+                    .fold(f64::INFINITY, f64::min);
+            });
     }
 
     /// Forces node i's exact check until the next epoch (its checked bonds changed).
     pub fn force(&mut self, i: usize) {
         self.slack[i] = f64::NEG_INFINITY;
+        self.least_slack[self.cell_of[i] as usize] = f64::NEG_INFINITY;
+    }
+
+    /// Appends to `out` the nodes k with `wanted(k)` that may have a critical bond, visiting
+    /// only the cells whose bound reaches their least slack (no allocation beyond `out`).
+    pub fn flag(&self, wanted: impl Fn(usize) -> bool, out: &mut Vec<u32>) {
+        for (c, (&bound, &least)) in self.bound.iter().zip(&self.least_slack).enumerate() {
+            if self.reaches(bound, least) {
+                out.extend(
+                    self.cell_nodes[self.cell_offsets[c]..self.cell_offsets[c + 1]]
+                        .iter()
+                        .filter(|&&k| wanted(k as usize) && self.may_reach(k as usize)),
+                );
+            }
+        }
     }
 
     /// Recomputes the per-cell bounds B_c for the motion since the epoch.
@@ -119,8 +149,9 @@ impl<const D: usize> MotionBound<D> {
                 *rep = motion(first as usize);
                 *spread = members
                     .iter()
-                    .map(|&k| distance(&motion(k as usize), rep))
-                    .fold(0.0, f64::max);
+                    .map(|&k| distance2(&motion(k as usize), rep))
+                    .fold(0.0, f64::max)
+                    .sqrt();
             });
         let (dims, reps, spread) = (self.dims, &self.representative, &self.spread);
         self.bound
@@ -152,16 +183,22 @@ impl<const D: usize> MotionBound<D> {
     /// slacks (−∞) and non-finite motion. A relative 1e-12 of the cell size covers rounding in w and the slack.
     #[inline]
     pub fn may_reach(&self, i: usize) -> bool {
-        let bound = self.bound[self.cell_of[i] as usize] + 1e-12 * self.cell_size;
-        bound.is_nan() || bound >= self.slack[i]
+        self.reaches(self.bound[self.cell_of[i] as usize], self.slack[i])
+    }
+
+    #[inline]
+    fn reaches(&self, bound: f64, slack: f64) -> bool {
+        let bound = bound + 1e-12 * self.cell_size;
+        bound.is_nan() || bound >= slack
     }
 }
 
+fn distance2<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
+    (0..D).map(|k| (a[k] - b[k]) * (a[k] - b[k])).sum()
+}
+
 fn distance<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
-    (0..D)
-        .map(|k| (a[k] - b[k]) * (a[k] - b[k]))
-        .sum::<f64>()
-        .sqrt()
+    distance2(a, b).sqrt()
 }
 
 /// Cell coordinates of a flat index (axis 0 fastest).

@@ -26,7 +26,10 @@ pub struct RowRuns {
 impl RowRuns {
     pub fn new<const D: usize>(op: &VectorOperator<D>) -> Self {
         let shifted = |r: usize| {
-            let (a, b) = (op.offsets[r]..op.offsets[r + 1], op.offsets[r + 1]..op.offsets[r + 2]);
+            let (a, b) = (
+                op.offsets[r]..op.offsets[r + 1],
+                op.offsets[r + 1]..op.offsets[r + 2],
+            );
             op.rows[r + 1] == op.rows[r] + 1
                 && op.stencil_of[r + 1] == op.stencil_of[r]
                 && a.len() == b.len()
@@ -191,16 +194,9 @@ mod tests {
             .collect();
         let basis = wls::Basis::new(2, 2);
         let l = wls::bond_l(&basis, 1.0, horizon, Default::default());
-        let op = wls::elasticity_operator(
-            &rows,
-            &lattice.positions,
-            &families,
-            &basis,
-            &l,
-            horizon,
-            3,
-        )
-        .unwrap();
+        let op =
+            wls::elasticity_operator(&rows, &lattice.positions, &families, &basis, &l, horizon, 3)
+                .unwrap();
         let runs = RowRuns::new(&op);
         assert!(runs.chunked_fraction() > 0.3, "{}", runs.chunked_fraction());
         let n = lattice.positions.len();
@@ -209,15 +205,13 @@ mod tests {
             .collect();
         let components: [Vec<f64>; 2] = std::array::from_fn(|l| u.iter().map(|v| v[l]).collect());
         let mut fast = vec![[f64::NAN; 2]; rows.len()];
-        runs.apply(
-            &op,
-            [&components[0], &components[1]],
-            |_| true,
-            &mut fast,
-        );
+        runs.apply(&op, [&components[0], &components[1]], |_| true, &mut fast);
         let mut reference = vec![[0.0; 2]; rows.len()];
         op.apply_rows(&u, &mut reference);
-        let scale = reference.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
+        let scale = reference
+            .iter()
+            .flatten()
+            .fold(0.0f64, |m, x| m.max(x.abs()));
         for (a, b) in fast.iter().zip(&reference) {
             for k in 0..2 {
                 assert!((a[k] - b[k]).abs() <= 1e-12 * scale, "{a:?} vs {b:?}");
