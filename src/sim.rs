@@ -517,12 +517,17 @@ impl<const D: usize> Simulation<D> {
         }
         let inv_rho = 1.0 / self.density();
         let body = &self.body_force;
-        for (i, (a, t)) in self.accelerations.iter_mut().zip(&self.terms).enumerate() {
-            for k in 0..D {
-                let b = if body.is_empty() { 0.0 } else { body[i][k] };
-                a[k] = (t.force[k] + b) * inv_rho;
-            }
-        }
+        self.accelerations
+            .par_iter_mut()
+            .zip(&self.terms)
+            .enumerate()
+            .with_min_len(4096)
+            .for_each(|(i, (a, t))| {
+                for k in 0..D {
+                    let b = if body.is_empty() { 0.0 } else { body[i][k] };
+                    a[k] = (t.force[k] + b) * inv_rho;
+                }
+            });
     }
 
     /// Damage φ_i (2.36), kept up to date by the force loop as bonds break.

@@ -116,11 +116,15 @@ fn all_wls_hybrid_is_the_wls_scheme() {
             }
         }
     }
+    // The reference sums K u row by row; the hybrid over translation runs (another order).
+    // u is dominated by the rigid drift of the plate (0.3 m/s), which K u cancels to about
+    // six digits, so the two roundings part at ~1e-9 of the speed after 200 steps; a wrong
+    // block or column would differ at O(1).
     let scale = v.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
     for i in 0..n {
         for k in 0..2 {
             assert!(
-                (sim.velocities[i][k] - v[i][k]).abs() <= 1e-9 * scale,
+                (sim.velocities[i][k] - v[i][k]).abs() <= 1e-7 * scale,
                 "node {i}"
             );
             assert!((sim.positions[i][k] - y[i][k]).abs() <= 1e-12);

@@ -55,13 +55,18 @@ pub struct Hybrid<const D: usize> {
     /// the CSR position of its first neighbour j > i (rows are sorted by index) …
     forward_start: Vec<usize>,
     /// … and whether the node also has a lower-index neighbour outside the check set, whose
-    /// bond it must check itself (may be conservatively true).
+    /// bond it must check itself (may be conservatively true); such a node checks its whole
+    /// family (one SIMD pass; a bond checked from both ends is harmless).
     scans_backward: Vec<bool>,
     check_bonds: u64,
     /// Skips nodes whose bonds provably cannot be critical (policies `all` and `near`).
     motion: Option<MotionBound<D>>,
     /// Scratch of the filtered check: the nodes that may have a critical bond.
     flagged: Vec<u32>,
+    /// Checked nodes and their family members (the motion bound's tracked nodes), and
+    /// whether the check set changed since they were listed.
+    tracked: Vec<bool>,
+    tracked_stale: bool,
     standard_nodes: usize,
     initial_standard: usize,
     events: Vec<SwitchEvent>,
@@ -165,6 +170,8 @@ impl<const D: usize> Hybrid<D> {
                 MotionBound::new(reference, reach)
             }),
             flagged: Vec::new(),
+            tracked: vec![false; mask_len],
+            tracked_stale: true,
             standard_nodes,
             initial_standard: standard_nodes,
             events: Vec::new(),
@@ -228,56 +235,33 @@ impl<const D: usize> Hybrid<D> {
         if self.spec.check == CheckSet::Collocation {
             let (op, r) = (&self.wls, self.row_of[i] as usize);
             (op.offsets[r + 1] - op.offsets[r]) as u64 - 1
-        } else if self.scans_backward[i] {
-            self.responsible_bonds(i, families).count() as u64
         } else {
-            (families.offsets[i + 1] - self.forward_start[i]) as u64
+            self.checked_bonds_of(i, families).len() as u64
         }
     }
 
-    /// The bonds node `i` (in the check set) checks: those to higher-index neighbours, and to
-    /// lower-index ones outside the check set.
-    fn responsible_bonds<'a>(
-        &'a self,
-        i: usize,
-        families: &'a Families,
-    ) -> impl Iterator<Item = usize> + 'a {
+    /// The CSR positions of the bonds node `i` (in the check set) checks: those to
+    /// higher-index neighbours, or its whole family if it scans backward.
+    fn checked_bonds_of(&self, i: usize, families: &Families) -> std::ops::Range<usize> {
         let range = families.range(i);
-        let backward = if self.scans_backward[i] {
-            range.start..self.forward_start[i]
+        if self.scans_backward[i] {
+            range
         } else {
-            0..0
-        };
-        backward
-            .filter(move |&b| !self.in_check[families.neighbors[b] as usize])
-            .chain(self.forward_start[i]..range.end)
+            self.forward_start[i]..range.end
+        }
     }
 
     /// The least g(r², l²) over the bonds node `i` (in the check set) checks (+∞ if none), r
-    /// and l a bond's current and reference lengths. The hot loop runs over the higher-index
-    /// neighbours in SIMD lanes, streaming only their indices (bond lengths come from the
-    /// cache-resident reference positions); the lower-index ones outside the check set follow
-    /// when the node has any.
+    /// and l a bond's current and reference lengths, in SIMD lanes, streaming only the
+    /// neighbour indices (bond lengths come from the cache-resident reference positions).
     #[inline(always)]
     fn node_least(&self, i: usize, bonds: &BondView<D>, g: impl Fn(f64, f64) -> f64 + Copy) -> f64 {
         let families = bonds.families;
-        let forward = &families.neighbors[self.forward_start[i]..families.offsets[i + 1]];
-        let mut least = bonds.least(i, forward, g);
-        if self.scans_backward[i] {
-            for b in self
-                .responsible_bonds(i, families)
-                .take_while(|&b| b < self.forward_start[i])
-            {
-                let (r2, l2) = bond_squares(
-                    i,
-                    families.neighbors[b] as usize,
-                    bonds.reference,
-                    bonds.positions,
-                );
-                least = lesser(least, g(r2, l2));
-            }
-        }
-        least
+        bonds.least(
+            i,
+            &families.neighbors[self.checked_bonds_of(i, families)],
+            g,
+        )
     }
 
     /// Whether Ω_w node `i` (in the check set) has a critical bond, r² ≥ f l², among those it
@@ -341,17 +325,27 @@ impl<const D: usize> Hybrid<D> {
             } else {
                 Vec::new()
             };
-            motion.start_epoch(positions, factor);
+            if self.tracked_stale {
+                let (in_check, neighbors) = (&self.in_check, &families.neighbors);
+                self.tracked.par_iter_mut().enumerate().for_each(|(k, t)| {
+                    *t = in_check[k] || families.range(k).any(|b| in_check[neighbors[b] as usize]);
+                });
+                self.tracked_stale = false;
+            }
+            let tracked = &self.tracked;
+            motion.start_epoch(positions, factor, |k| tracked[k]);
             self.checked_bonds += self.check_bonds;
             self.full_checks += 1;
             critical
         } else {
-            let counted: u64 = this
+            // One pass counts the bonds visited and whether any is critical; the critical
+            // nodes are listed (allocated) only when there are some.
+            let (counted, any) = this
                 .flagged
-                .iter()
-                .map(|&i| this.bond_count(i as usize, families))
-                .sum();
-            let critical = if this.flagged.par_iter().any(node_critical) {
+                .par_iter()
+                .map(|i| (this.bond_count(*i as usize, families), node_critical(i)))
+                .reduce(|| (0, false), |a, b| (a.0 + b.0, a.1 | b.1));
+            let critical = if any {
                 this.flagged
                     .par_iter()
                     .copied()
@@ -413,6 +407,7 @@ impl<const D: usize> Hybrid<D> {
         if let Some(m) = self.motion.as_mut() {
             m.invalidate();
         }
+        self.tracked_stale = true;
         self.check_bonds = self.bonds_to_check(families);
     }
 
@@ -480,6 +475,7 @@ impl<const D: usize> Hybrid<D> {
         }
         let in_check = &self.in_check;
         self.check_nodes.retain(|&i| in_check[i as usize]);
+        self.tracked_stale = true;
         self.check_bonds = self.bonds_to_check(families);
     }
 
@@ -555,7 +551,7 @@ impl<const D: usize> Hybrid<D> {
                 }
             } else {
                 for b in self
-                    .responsible_bonds(i, families)
+                    .checked_bonds_of(i, families)
                     .filter(|&b| bond_critical(i, families.neighbors[b] as usize))
                 {
                     ends.extend([i as u32, families.neighbors[b]]);

@@ -13,11 +13,17 @@ use rayon::prelude::*;
 
 pub struct MotionBound<const D: usize> {
     cell_size: f64,
-    dims: [usize; D],
+    /// Flat index offsets of a cell's 3^D neighbours (itself included).
+    neighbor_offsets: Vec<isize>,
     /// Node → its cell; cells' nodes in CSR form.
     cell_of: Vec<u32>,
     cell_offsets: Vec<usize>,
     cell_nodes: Vec<u32>,
+    /// The cells' *tracked* nodes (CSR): those whose motion can enter a checked bond, the
+    /// checked nodes and their family members. Set at each epoch; the bound is taken over
+    /// them only, so nodes deep inside Ω_s (a crack opening) do not widen it.
+    tracked_offsets: Vec<usize>,
+    tracked_nodes: Vec<u32>,
     /// Positions at the epoch, and each node's slack (m); −∞ forces an exact check.
     epoch: Vec<[f64; D]>,
     pub slack: Vec<f64>,
@@ -44,17 +50,27 @@ impl<const D: usize> MotionBound<D> {
             }
         }
         let cell_size = reach * (1.0 + 1e-9);
+        // One empty cell of padding on every side: each node's cell has all 3^D neighbours.
         let dims: [usize; D] =
-            std::array::from_fn(|k| (((hi[k] - lo[k]) / cell_size).floor() as usize + 1).max(1));
+            std::array::from_fn(|k| ((hi[k] - lo[k]) / cell_size).floor() as usize + 3);
         let cell_of: Vec<u32> = reference
             .iter()
             .map(|x| {
                 (0..D).rev().fold(0usize, |acc, k| {
-                    let c = (((x[k] - lo[k]) / cell_size).floor() as usize).min(dims[k] - 1);
-                    acc * dims[k] + c
+                    let c = (((x[k] - lo[k]) / cell_size).floor() as usize).min(dims[k] - 3);
+                    acc * dims[k] + c + 1
                 }) as u32
             })
             .collect();
+        let mut stride = 1isize;
+        let mut neighbor_offsets = vec![0isize];
+        for &d in &dims {
+            neighbor_offsets = [-stride, 0, stride]
+                .iter()
+                .flat_map(|&step| neighbor_offsets.iter().map(move |&o| o + step))
+                .collect();
+            stride *= d as isize;
+        }
         let cells: usize = dims.iter().product();
         let mut cell_offsets = vec![0usize; cells + 1];
         for &c in &cell_of {
@@ -71,8 +87,10 @@ impl<const D: usize> MotionBound<D> {
         }
         MotionBound {
             cell_size,
-            dims,
+            neighbor_offsets,
             cell_of,
+            tracked_offsets: cell_offsets.clone(),
+            tracked_nodes: cell_nodes.clone(),
             cell_offsets,
             cell_nodes,
             epoch: reference.to_vec(),
@@ -95,10 +113,26 @@ impl<const D: usize> MotionBound<D> {
     }
 
     /// Starts an epoch at `positions`; the caller has filled `slack` for f = `factor` (+∞ for
-    /// nodes it never asks about).
-    pub fn start_epoch(&mut self, positions: &[[f64; D]], factor: f64) {
+    /// nodes it never asks about). `tracked(k)` must hold for every node that is checked or
+    /// bonded to a checked node until the next epoch (nodes forced later are exempt: they
+    /// are always checked exactly).
+    pub fn start_epoch(
+        &mut self,
+        positions: &[[f64; D]],
+        factor: f64,
+        tracked: impl Fn(usize) -> bool,
+    ) {
         self.epoch.copy_from_slice(positions);
         self.factor = Some(factor);
+        self.tracked_nodes.clear();
+        self.tracked_offsets.clear();
+        self.tracked_offsets.push(0);
+        for c in 0..self.cell_offsets.len() - 1 {
+            let members = &self.cell_nodes[self.cell_offsets[c]..self.cell_offsets[c + 1]];
+            self.tracked_nodes
+                .extend(members.iter().filter(|&&k| tracked(k as usize)));
+            self.tracked_offsets.push(self.tracked_nodes.len());
+        }
         let (offsets, nodes, slack) = (&self.cell_offsets, &self.cell_nodes, &self.slack);
         self.least_slack
             .par_iter_mut()
@@ -133,7 +167,7 @@ impl<const D: usize> MotionBound<D> {
 
     /// Recomputes the per-cell bounds B_c for the motion since the epoch.
     pub fn update(&mut self, positions: &[[f64; D]]) {
-        let (offsets, nodes, epoch) = (&self.cell_offsets, &self.cell_nodes, &self.epoch);
+        let (offsets, nodes, epoch) = (&self.tracked_offsets, &self.tracked_nodes, &self.epoch);
         let motion =
             |k: usize| -> [f64; D] { std::array::from_fn(|a| positions[k][a] - epoch[k][a]) };
         self.representative
@@ -142,37 +176,61 @@ impl<const D: usize> MotionBound<D> {
             .enumerate()
             .for_each(|(c, (rep, spread))| {
                 let members = &nodes[offsets[c]..offsets[c + 1]];
-                let Some(&first) = members.first() else {
+                if members.is_empty() {
                     *spread = 0.0;
                     return;
+                }
+                // The motions' bounding box: its centre represents the cell, its half
+                // diagonal bounds every member's distance from it.
+                let mut lo = [f64::INFINITY; D];
+                let mut hi = [f64::NEG_INFINITY; D];
+                // Σ w is non-finite if any w is (or overflows: then conservatively so too).
+                let mut sum = 0.0;
+                for &k in members {
+                    let w = motion(k as usize);
+                    for a in 0..D {
+                        lo[a] = if w[a] < lo[a] { w[a] } else { lo[a] };
+                        hi[a] = if w[a] > hi[a] { w[a] } else { hi[a] };
+                        sum += w[a];
+                    }
+                }
+                let finite = sum.is_finite();
+                *rep = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]));
+                // Rounding of the centre is covered by the relative margin; a non-finite
+                // motion makes the bound NaN (every node near it is then checked).
+                *spread = if finite {
+                    (0..D)
+                        .map(|a| (0.5 * (hi[a] - lo[a])).powi(2))
+                        .sum::<f64>()
+                        .sqrt()
+                        * (1.0 + 1e-12)
+                } else {
+                    f64::NAN
                 };
-                *rep = motion(first as usize);
-                *spread = members
-                    .iter()
-                    .map(|&k| distance2(&motion(k as usize), rep))
-                    .fold(0.0, f64::max)
-                    .sqrt();
             });
-        let (dims, reps, spread) = (self.dims, &self.representative, &self.spread);
+        let (reps, spread, least) = (&self.representative, &self.spread, &self.least_slack);
+        let neighbors = &self.neighbor_offsets;
         self.bound
             .par_iter_mut()
             .enumerate()
+            .with_min_len(256)
             .for_each(|(c, bound)| {
-                let at = unflatten(c, &dims);
+                // Cells without a slack to compare (padding, no checked node) need no bound.
+                if least[c] == f64::INFINITY {
+                    *bound = 0.0;
+                    return;
+                }
                 let mut far = 0.0f64;
-                for code in 0..3usize.pow(D as u32) {
-                    let mut rest = code;
-                    let mut other = 0usize;
-                    let mut inside = true;
-                    for k in (0..D).rev() {
-                        let step = (rest % 3) as isize - 1;
-                        rest /= 3;
-                        let v = at[k] as isize + step;
-                        inside &= v >= 0 && (v as usize) < dims[k];
-                        other = other * dims[k] + v.max(0) as usize;
-                    }
-                    if inside && offsets[other] < offsets[other + 1] {
-                        far = far.max(spread[other] + distance(&reps[other], &reps[c]));
+                for &offset in neighbors {
+                    let other = c.wrapping_add_signed(offset);
+                    if offsets[other] < offsets[other + 1] {
+                        let reach = spread[other] + distance(&reps[other], &reps[c]);
+                        // NaN-propagating max: a non-finite neighbour poisons the bound.
+                        far = if reach.is_nan() || reach > far {
+                            reach
+                        } else {
+                            far
+                        };
                     }
                 }
                 *bound = spread[c] + far;
@@ -199,13 +257,4 @@ fn distance2<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
 
 fn distance<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
     distance2(a, b).sqrt()
-}
-
-/// Cell coordinates of a flat index (axis 0 fastest).
-fn unflatten<const D: usize>(mut c: usize, dims: &[usize; D]) -> [usize; D] {
-    std::array::from_fn(|k| {
-        let v = c % dims[k];
-        c /= dims[k];
-        v
-    })
 }
