@@ -65,7 +65,11 @@ pub fn report(variant: &str) -> Result<String, String> {
     let dt_set = format!("time.dt={dt:e}");
     let configurations = [
         (variant.to_string(), None, "standard"),
-        (hybrid_variant.clone(), Some("all"), "hybrid-adaptive, check all"),
+        (
+            hybrid_variant.clone(),
+            Some("all"),
+            "hybrid-adaptive, check all",
+        ),
         (hybrid_variant, Some("near"), "hybrid-adaptive, check near"),
     ];
     // Each configuration twice, interleaved, keeping the faster run: this machine's wall
