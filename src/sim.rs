@@ -513,16 +513,22 @@ impl<const D: usize> Simulation<D> {
         self.broken +=
             scheme.forces_masked(&self.positions, &mut self.intact, &mut self.terms, mask);
         if let Some(h) = self.hybrid.as_mut() {
-            h.wls_forces(&self.lattice.positions, &self.positions, &mut self.terms);
+            h.wls_forces(&self.lattice.positions, &self.positions);
         }
         let inv_rho = 1.0 / self.density();
-        let body = &self.body_force;
+        let (body, hybrid) = (&self.body_force, self.hybrid.as_ref());
         self.accelerations
             .par_iter_mut()
-            .zip(&self.terms)
+            .zip(&mut self.terms)
             .enumerate()
             .with_min_len(4096)
             .for_each(|(i, (a, t))| {
+                // Ω_w nodes take their WLS force (energy density 0: frames evaluate their bond
+                // energy themselves).
+                if let Some(force) = hybrid.and_then(|h| h.wls_force_of(i)) {
+                    t.force = force;
+                    t.energy_density = 0.0;
+                }
                 for k in 0..D {
                     let b = if body.is_empty() { 0.0 } else { body[i][k] };
                     a[k] = (t.force[k] + b) * inv_rho;

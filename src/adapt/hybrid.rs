@@ -18,7 +18,6 @@ use crate::model::pmb::PmbLaw;
 use crate::scene::{CheckSet, CrackGeometry, HybridSpec, Solid};
 use crate::scheme::VectorOperator;
 use crate::scheme::runs::RowRuns;
-use crate::scheme::standard::NodeTerms;
 use crate::scheme::wls::{self, Basis, FitError};
 
 /// Mask values.
@@ -611,14 +610,10 @@ impl<const D: usize> Hybrid<D> {
         }
     }
 
-    /// WLS forces K u on the Ω_w nodes (u = positions − reference), written into their terms
-    /// (energy density 0: frames evaluate Ω_w nodes' bond energy themselves).
-    pub fn wls_forces(
-        &mut self,
-        reference: &[[f64; D]],
-        positions: &[[f64; D]],
-        terms: &mut [NodeTerms<D>],
-    ) {
+    /// WLS forces K u on the Ω_w nodes (u = positions − reference), kept per row; the
+    /// simulation's acceleration pass picks them up with [`Self::wls_force_of`] (no scatter
+    /// pass of its own).
+    pub fn wls_forces(&mut self, reference: &[[f64; D]], positions: &[[f64; D]]) {
         for (k, u) in self.displacement.iter_mut().enumerate() {
             u.par_iter_mut()
                 .zip(positions.par_iter().zip(reference))
@@ -633,18 +628,12 @@ impl<const D: usize> Hybrid<D> {
             |r| mask[op.rows[r] as usize] == WLS,
             &mut self.wls_force,
         );
-        let (force, row_of) = (&self.wls_force, &self.row_of);
-        terms
-            .par_iter_mut()
-            .zip(mask.par_iter())
-            .enumerate()
-            .with_min_len(4096)
-            .for_each(|(i, (t, &m))| {
-                if m == WLS {
-                    t.force = force[row_of[i] as usize];
-                    t.energy_density = 0.0;
-                }
-            });
+    }
+
+    /// Node i's WLS force from the last [`Self::wls_forces`], if it is in Ω_w.
+    #[inline]
+    pub fn wls_force_of(&self, i: usize) -> Option<[f64; D]> {
+        (self.mask[i] == WLS).then(|| self.wls_force[self.row_of[i] as usize])
     }
 }
 
