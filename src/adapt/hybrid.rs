@@ -266,7 +266,8 @@ impl<const D: usize> Hybrid<D> {
     /// Whether Ω_w node `i` (in the check set) has a critical bond, r² ≥ f l², among those it
     /// checks (f l² − r² has the sign of the exact difference, so "least ≤ 0" is that test).
     fn node_critical(&self, i: usize, bonds: &BondView<D>, factor: f64) -> bool {
-        self.mask[i] == WLS && self.node_least(i, bonds, move |r2, l2| factor * l2 - r2) <= 0.0
+        self.mask[i] == WLS
+            && self.node_least(i, bonds, move |r2, l2| critical_margin(factor, r2, l2)) <= 0.0
     }
 
     /// The check under the `all` and `near` policies, filtered by the motion bound: nodes whose
@@ -504,7 +505,7 @@ impl<const D: usize> Hybrid<D> {
         // One criterion for every path (a collocation row also lists the node itself).
         let bond_critical = |i: usize, j: usize| {
             let (r2, l2) = bond_squares(i, j, reference, positions);
-            j != i && r2 >= factor * l2
+            j != i && critical_margin(factor, r2, l2) <= 0.0
         };
         // The collocation policy checks row r's columns of the WLS operator instead.
         let op = &self.wls;
@@ -712,6 +713,13 @@ fn least_portable<const D: usize>(
 #[inline(always)]
 fn lesser(a: f64, v: f64) -> f64 {
     if v < a { v } else { a }
+}
+
+/// The bond criterion (3.80) for every check path: a bond is critical when f l² − r² ≤ 0,
+/// i.e. r² ≥ (1 + χ s0)² l² (the rounded difference has the exact difference's sign).
+#[inline(always)]
+fn critical_margin(factor: f64, r2: f64, l2: f64) -> f64 {
+    factor * l2 - r2
 }
 
 /// Squared current and reference lengths of bond (i, j).
