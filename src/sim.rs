@@ -501,6 +501,13 @@ impl<const D: usize> Simulation<D> {
     }
 
     fn update_accelerations(&mut self) {
+        self.compute_forces();
+        self.accelerate(None);
+    }
+
+    /// Force densities at the current positions: the PMB bond loop (Ω_s rows only in a
+    /// hybrid) and the WLS product on Ω_w.
+    fn compute_forces(&mut self) {
         // Built from the fields it needs, so `intact` and `terms` stay free to borrow.
         let scheme = standard_view(
             &self.lattice,
@@ -515,25 +522,32 @@ impl<const D: usize> Simulation<D> {
         if let Some(h) = self.hybrid.as_mut() {
             h.wls_forces(&self.lattice.positions, &self.positions);
         }
+    }
+
+    /// ü = (f + b)/ρ per node, Ω_w nodes taking their WLS force (their `terms` are left
+    /// alone: nothing reads an Ω_w node's bond-loop terms). With `kick = Some(Δt)` the second
+    /// half kick (3.6) runs in the same pass; returns the largest squared speed then
+    /// (NaN-propagating), 0 otherwise.
+    fn accelerate(&mut self, kick: Option<f64>) -> f64 {
         let inv_rho = 1.0 / self.density();
-        let (body, hybrid) = (&self.body_force, self.hybrid.as_ref());
+        let (body, hybrid, terms) = (&self.body_force, self.hybrid.as_ref(), &self.terms);
         self.accelerations
             .par_iter_mut()
-            .zip(&mut self.terms)
+            .zip(&mut self.velocities)
             .enumerate()
             .with_min_len(4096)
-            .for_each(|(i, (a, t))| {
-                // Ω_w nodes take their WLS force (energy density 0: frames evaluate their bond
-                // energy themselves).
-                if let Some(force) = hybrid.and_then(|h| h.wls_force_of(i)) {
-                    t.force = force;
-                    t.energy_density = 0.0;
-                }
+            .map(|(i, (a, v))| {
+                let force = match hybrid.and_then(|h| h.wls_force_of(i)) {
+                    Some(force) => force,
+                    None => terms[i].force,
+                };
                 for k in 0..D {
                     let b = if body.is_empty() { 0.0 } else { body[i][k] };
-                    a[k] = (t.force[k] + b) * inv_rho;
+                    a[k] = (force[k] + b) * inv_rho;
                 }
-            });
+                kick.map_or(0.0, |dt| verlet::kick_node(v, a, dt))
+            })
+            .reduce(|| 0.0, verlet::max_or_nan)
     }
 
     /// Damage φ_i (2.36), kept up to date by the force loop as bonds break.
@@ -594,7 +608,12 @@ impl<const D: usize> Simulation<D> {
 
     /// Force density on each node at the current positions (N/m³), without body forces.
     pub fn force_density(&self) -> Vec<[f64; D]> {
-        self.terms.iter().map(|t| t.force).collect()
+        let hybrid = self.hybrid.as_ref();
+        self.terms
+            .iter()
+            .enumerate()
+            .map(|(i, t)| hybrid.and_then(|h| h.wls_force_of(i)).unwrap_or(t.force))
+            .collect()
     }
 
     /// Recomputes forces after positions were set by hand (tests, restarts).
@@ -704,10 +723,9 @@ impl<const D: usize> Stepper for Simulation<D> {
         }
         let t_switch = Instant::now();
         self.timers.switching += t_switch - t1;
-        self.update_accelerations();
+        self.compute_forces();
         let t2 = Instant::now();
-        let max_speed2 =
-            verlet::half_kick_max_speed2(&mut self.velocities, &self.accelerations, dt);
+        let max_speed2 = self.accelerate(Some(dt));
         let t3 = Instant::now();
         self.apply_constraints();
         let t4 = Instant::now();

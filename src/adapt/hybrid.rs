@@ -615,12 +615,11 @@ impl<const D: usize> Hybrid<D> {
     /// simulation's acceleration pass picks them up with [`Self::wls_force_of`] (no scatter
     /// pass of its own).
     pub fn wls_forces(&mut self, reference: &[[f64; D]], positions: &[[f64; D]]) {
-        for (k, u) in self.displacement.iter_mut().enumerate() {
-            u.par_iter_mut()
-                .zip(positions.par_iter().zip(reference))
-                .with_min_len(4096)
-                .for_each(|(u, (y, x))| *u = y[k] - x[k]);
-        }
+        displacement_components(
+            self.displacement.each_mut().map(|u| u.as_mut_slice()),
+            reference,
+            positions,
+        );
         let (op, mask) = (&self.wls, &self.mask);
         let u: [&[f64]; D] = std::array::from_fn(|k| self.displacement[k].as_slice());
         self.runs.apply(
@@ -636,6 +635,36 @@ impl<const D: usize> Hybrid<D> {
     pub fn wls_force_of(&self, i: usize) -> Option<[f64; D]> {
         (self.mask[i] == WLS).then(|| self.wls_force[self.row_of[i] as usize])
     }
+}
+
+/// u[k][i] = y_i[k] − x_i[k] for every component in one parallel pass over the nodes (the
+/// component slices are split together, so each node's positions are read once).
+fn displacement_components<const D: usize>(
+    u: [&mut [f64]; D],
+    reference: &[[f64; D]],
+    positions: &[[f64; D]],
+) {
+    const LEAF: usize = 4096;
+    if reference.len() <= LEAF {
+        for (i, (y, x)) in positions.iter().zip(reference).enumerate() {
+            for k in 0..D {
+                u[k][i] = y[k] - x[k];
+            }
+        }
+        return;
+    }
+    let mid = reference.len() / 2;
+    let mut low: [&mut [f64]; D] = std::array::from_fn(|_| &mut [][..]);
+    let mut high: [&mut [f64]; D] = std::array::from_fn(|_| &mut [][..]);
+    for (k, component) in u.into_iter().enumerate() {
+        let (a, b) = component.split_at_mut(mid);
+        (low[k], high[k]) = (a, b);
+    }
+    let ((x_low, x_high), (y_low, y_high)) = (reference.split_at(mid), positions.split_at(mid));
+    rayon::join(
+        || displacement_components(low, x_low, y_low),
+        || displacement_components(high, x_high, y_high),
+    );
 }
 
 /// The bond data a check reads, and whether the CPU runs its lanes 4-wide.

@@ -15,34 +15,26 @@ pub fn half_kick<const D: usize>(velocity: &mut [[f64; D]], acceleration: &[[f64
         });
 }
 
-/// Second half kick; returns the largest squared speed (NaN-propagating, for blow-up checks).
-pub fn half_kick_max_speed2<const D: usize>(
-    velocity: &mut [[f64; D]],
-    acceleration: &[[f64; D]],
-    dt: f64,
-) -> f64 {
-    velocity
-        .par_iter_mut()
-        .zip(acceleration)
-        .with_min_len(4096)
-        .map(|(v, a)| {
-            let mut s2 = 0.0;
-            for k in 0..D {
-                v[k] += 0.5 * dt * a[k];
-                s2 += v[k] * v[k];
-            }
-            s2
-        })
-        .reduce(
-            || 0.0,
-            |a, b| {
-                if a.is_nan() || b.is_nan() {
-                    f64::NAN
-                } else {
-                    a.max(b)
-                }
-            },
-        )
+/// Second half kick of one node, u̇ += (Δt/2) ü; returns its squared speed (the caller
+/// fuses this into the pass that computes ü).
+#[inline(always)]
+pub fn kick_node<const D: usize>(velocity: &mut [f64; D], acceleration: &[f64; D], dt: f64) -> f64 {
+    let mut s2 = 0.0;
+    for k in 0..D {
+        velocity[k] += 0.5 * dt * acceleration[k];
+        s2 += velocity[k] * velocity[k];
+    }
+    s2
+}
+
+/// max(a, b), NaN if either is NaN (a blow-up check must see a NaN speed).
+#[inline]
+pub fn max_or_nan(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b.is_nan() {
+        f64::NAN
+    } else {
+        a.max(b)
+    }
 }
 
 /// y += Δt u̇.

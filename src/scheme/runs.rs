@@ -71,7 +71,7 @@ impl RowRuns {
 
     /// out[r] = Σ_j K_rj u_j for every row r with `wanted(r)` (other entries are left alone or
     /// overwritten), u given by components (`u[l][j]`). Parallel over blocks, no allocation;
-    /// deterministic (each row's sum has a fixed order).
+    /// deterministic (each row's sum has a fixed order for a given CPU).
     pub fn apply<const D: usize>(
         &self,
         op: &VectorOperator<D>,
@@ -79,28 +79,87 @@ impl RowRuns {
         wanted: impl Fn(usize) -> bool + Sync,
         out: &mut [[f64; D]],
     ) {
-        #[cfg(target_arch = "x86_64")]
-        let avx2 = std::arch::is_x86_feature_detected!("avx2");
+        self.apply_with(Kernel::fastest(), op, u, wanted, out);
+    }
+
+    /// [`Self::apply`] with a given chunk kernel (it must be supported by this CPU).
+    pub fn apply_with<const D: usize>(
+        &self,
+        kernel: Kernel,
+        op: &VectorOperator<D>,
+        u: [&[f64]; D],
+        wanted: impl Fn(usize) -> bool + Sync,
+        out: &mut [[f64; D]],
+    ) {
+        assert!(
+            Kernel::supported().contains(&kernel),
+            "{kernel:?} on this CPU"
+        );
         out.par_chunks_mut(BLOCK)
             .enumerate()
             .for_each(|(block, out)| {
                 let runs = &self.runs[self.block_first[block]..self.block_first[block + 1]];
                 let base = block * BLOCK;
-                #[cfg(target_arch = "x86_64")]
-                if avx2 {
-                    // SAFETY: the CPU supports AVX2 (detected above).
-                    unsafe { block_avx2(op, runs, base, u, &wanted, out) };
-                    return;
+                match kernel {
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: the CPU supports AVX-512F (asserted above).
+                    Kernel::Avx512 => unsafe { block_avx512(op, runs, base, u, &wanted, out) },
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: the CPU supports AVX2 and FMA (asserted above).
+                    Kernel::Avx2Fma => unsafe { block_avx2(op, runs, base, u, &wanted, out) },
+                    _ => block_portable(op, runs, base, u, &wanted, out, chunk_product),
                 }
-                block_portable(op, runs, base, u, &wanted, out);
             });
     }
 }
 
-/// `block_portable` compiled for AVX2 (4-wide lanes). No FMA is enabled, so the results are
-/// bit-identical to the portable code.
+/// The chunk products this build has: portable code, AVX2 with FMA (two 4-lane registers per
+/// 8 rows) and AVX-512 (one register). They sum the same terms in the same order; the fused
+/// ones round each product into its sum once, so results differ in the last bits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kernel {
+    Portable,
+    Avx2Fma,
+    Avx512,
+}
+
+impl Kernel {
+    /// The kernels this CPU runs, slowest first.
+    pub fn supported() -> Vec<Kernel> {
+        let mut kernels = vec![Kernel::Portable];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
+                kernels.push(Kernel::Avx2Fma);
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                kernels.push(Kernel::Avx512);
+            }
+        }
+        kernels
+    }
+
+    pub fn fastest() -> Kernel {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                return Kernel::Avx512;
+            }
+            if std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
+                return Kernel::Avx2Fma;
+            }
+        }
+        Kernel::Portable
+    }
+}
+
+/// `block_portable` with the chunk product in AVX2 + FMA registers (see `chunk_product_fma`).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2")]
+#[target_feature(enable = "avx,avx2,fma")]
 fn block_avx2<const D: usize>(
     op: &VectorOperator<D>,
     runs: &[(u32, u32)],
@@ -109,7 +168,43 @@ fn block_avx2<const D: usize>(
     wanted: &impl Fn(usize) -> bool,
     out: &mut [[f64; D]],
 ) {
-    block_portable(op, runs, base, u, wanted, out)
+    block_portable(
+        op,
+        runs,
+        base,
+        u,
+        wanted,
+        out,
+        |op, run, shift, u, chunk| {
+            // SAFETY: this function only runs where AVX2 and FMA are present.
+            unsafe { chunk_product_fma(op, run, shift, u, chunk) }
+        },
+    )
+}
+
+/// `block_portable` with the chunk product in AVX-512 registers (one register per 8 rows).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn block_avx512<const D: usize>(
+    op: &VectorOperator<D>,
+    runs: &[(u32, u32)],
+    base: usize,
+    u: [&[f64]; D],
+    wanted: &impl Fn(usize) -> bool,
+    out: &mut [[f64; D]],
+) {
+    block_portable(
+        op,
+        runs,
+        base,
+        u,
+        wanted,
+        out,
+        |op, run, shift, u, chunk| {
+            // SAFETY: this function only runs where AVX-512F is present.
+            unsafe { chunk_product_avx512(op, run, shift, u, chunk) }
+        },
+    )
 }
 
 #[inline(always)]
@@ -120,6 +215,7 @@ fn block_portable<const D: usize>(
     u: [&[f64]; D],
     wanted: &impl Fn(usize) -> bool,
     out: &mut [[f64; D]],
+    chunk_product: impl Fn(&VectorOperator<D>, usize, usize, [&[f64]; D], &mut [[f64; D]; CHUNK]),
 ) {
     let component = |j: usize| -> [f64; D] { std::array::from_fn(|l| u[l][j]) };
     for &(first, len) in runs {
@@ -130,7 +226,7 @@ fn block_portable<const D: usize>(
                 let chunk: &mut [[f64; D]; CHUNK] = (&mut out[r - base..r - base + CHUNK])
                     .try_into()
                     .expect("a chunk of CHUNK rows");
-                chunk_product(op, r, u, chunk);
+                chunk_product(op, first, r - first, u, chunk);
             }
             r += CHUNK;
         }
@@ -142,20 +238,23 @@ fn block_portable<const D: usize>(
     }
 }
 
-/// Rows r … r + CHUNK − 1 of a run: out[t] = Σ_e K_e u(c_e + t), c_e the columns of row r.
+/// Rows r … r + CHUNK − 1 of the run starting at row `run`, r = run + `shift`:
+/// out[t] = Σ_e K_e u(c_e + shift + t), c_e the columns of the run's first row (read from
+/// there for the whole run: one cache-resident column list instead of one per chunk).
 #[inline(always)]
 fn chunk_product<const D: usize>(
     op: &VectorOperator<D>,
-    r: usize,
+    run: usize,
+    shift: usize,
     u: [&[f64]; D],
     out: &mut [[f64; D]; CHUNK],
 ) {
-    let columns = &op.columns[op.offsets[r]..op.offsets[r + 1]];
-    let first = op.stencil_offsets[op.stencil_of[r] as usize];
+    let columns = &op.columns[op.offsets[run]..op.offsets[run + 1]];
+    let first = op.stencil_offsets[op.stencil_of[run] as usize];
     let blocks = &op.blocks[first..first + columns.len()];
     let mut acc = [[0.0; CHUNK]; D];
     for (&c, block) in columns.iter().zip(blocks) {
-        let c = c as usize;
+        let c = c as usize + shift;
         for l in 0..D {
             let lane = &u[l][c..c + CHUNK];
             for k in 0..D {
@@ -168,6 +267,108 @@ fn chunk_product<const D: usize>(
     }
     for (t, o) in out.iter_mut().enumerate() {
         *o = std::array::from_fn(|k| acc[k][t]);
+    }
+}
+
+/// `chunk_product` in AVX2 registers with fused multiply-adds. Two 4-lane registers hold a
+/// component's 8 rows; weights are broadcast. Each (k, l) term has its own accumulators, so
+/// the FMA chains are independent (one FMA per accumulator per column: the loop runs at FMA
+/// throughput, not latency); they are summed over l at the end. Rounding differs from the
+/// portable path in the last bits.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2,fma")]
+unsafe fn chunk_product_fma<const D: usize>(
+    op: &VectorOperator<D>,
+    run: usize,
+    shift: usize,
+    u: [&[f64]; D],
+    out: &mut [[f64; D]; CHUNK],
+) {
+    use std::arch::x86_64::*;
+    const _: () = assert!(CHUNK == 8);
+    let columns = &op.columns[op.offsets[run]..op.offsets[run + 1]];
+    let first = op.stencil_offsets[op.stencil_of[run] as usize];
+    let blocks = &op.blocks[first..first + columns.len()];
+    let mut acc = [[[_mm256_setzero_pd(); 2]; D]; D];
+    for (&c, block) in columns.iter().zip(blocks) {
+        let c = c as usize + shift;
+        for l in 0..D {
+            let lane: &[f64; CHUNK] = u[l][c..c + CHUNK].try_into().expect("8 rows");
+            // SAFETY: `lane` holds 8 f64, read as two unaligned groups of 4.
+            let (lo, hi) = unsafe {
+                (
+                    _mm256_loadu_pd(lane.as_ptr()),
+                    _mm256_loadu_pd(lane.as_ptr().add(4)),
+                )
+            };
+            for k in 0..D {
+                let w = _mm256_set1_pd(block[k][l]);
+                acc[k][l][0] = _mm256_fmadd_pd(w, lo, acc[k][l][0]);
+                acc[k][l][1] = _mm256_fmadd_pd(w, hi, acc[k][l][1]);
+            }
+        }
+    }
+    let mut rows = [[0.0; CHUNK]; D];
+    for k in 0..D {
+        let [mut lo, mut hi] = acc[k][0];
+        for term in &acc[k][1..] {
+            lo = _mm256_add_pd(lo, term[0]);
+            hi = _mm256_add_pd(hi, term[1]);
+        }
+        // SAFETY: rows[k] holds 8 f64, written as two unaligned groups of 4.
+        unsafe {
+            _mm256_storeu_pd(rows[k].as_mut_ptr(), lo);
+            _mm256_storeu_pd(rows[k].as_mut_ptr().add(4), hi);
+        }
+    }
+    for (t, o) in out.iter_mut().enumerate() {
+        *o = std::array::from_fn(|k| rows[k][t]);
+    }
+}
+
+/// `chunk_product_fma` with one AVX-512 register per component's 8 rows.
+///
+/// # Safety
+/// The CPU must support AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn chunk_product_avx512<const D: usize>(
+    op: &VectorOperator<D>,
+    run: usize,
+    shift: usize,
+    u: [&[f64]; D],
+    out: &mut [[f64; D]; CHUNK],
+) {
+    use std::arch::x86_64::*;
+    let columns = &op.columns[op.offsets[run]..op.offsets[run + 1]];
+    let first = op.stencil_offsets[op.stencil_of[run] as usize];
+    let blocks = &op.blocks[first..first + columns.len()];
+    let mut acc = [[_mm512_setzero_pd(); D]; D];
+    for (&c, block) in columns.iter().zip(blocks) {
+        let c = c as usize + shift;
+        for l in 0..D {
+            let lane: &[f64; CHUNK] = u[l][c..c + CHUNK].try_into().expect("8 rows");
+            // SAFETY: `lane` holds 8 f64, read unaligned.
+            let values = unsafe { _mm512_loadu_pd(lane.as_ptr()) };
+            for k in 0..D {
+                acc[k][l] = _mm512_fmadd_pd(_mm512_set1_pd(block[k][l]), values, acc[k][l]);
+            }
+        }
+    }
+    let mut rows = [[0.0; CHUNK]; D];
+    for k in 0..D {
+        let mut sum = acc[k][0];
+        for &term in &acc[k][1..] {
+            sum = _mm512_add_pd(sum, term);
+        }
+        // SAFETY: rows[k] holds 8 f64, written unaligned.
+        unsafe { _mm512_storeu_pd(rows[k].as_mut_ptr(), sum) };
+    }
+    for (t, o) in out.iter_mut().enumerate() {
+        *o = std::array::from_fn(|k| rows[k][t]);
     }
 }
 
@@ -204,17 +405,28 @@ mod tests {
             .map(|i| [(i as f64 * 0.37).sin(), (i as f64 * 0.11).cos()])
             .collect();
         let components: [Vec<f64>; 2] = std::array::from_fn(|l| u.iter().map(|v| v[l]).collect());
-        let mut fast = vec![[f64::NAN; 2]; rows.len()];
-        runs.apply(&op, [&components[0], &components[1]], |_| true, &mut fast);
         let mut reference = vec![[0.0; 2]; rows.len()];
         op.apply_rows(&u, &mut reference);
         let scale = reference
             .iter()
             .flatten()
             .fold(0.0f64, |m, x| m.max(x.abs()));
-        for (a, b) in fast.iter().zip(&reference) {
-            for k in 0..2 {
-                assert!((a[k] - b[k]).abs() <= 1e-12 * scale, "{a:?} vs {b:?}");
+        for kernel in Kernel::supported() {
+            let mut fast = vec![[f64::NAN; 2]; rows.len()];
+            runs.apply_with(
+                kernel,
+                &op,
+                [&components[0], &components[1]],
+                |_| true,
+                &mut fast,
+            );
+            for (a, b) in fast.iter().zip(&reference) {
+                for k in 0..2 {
+                    assert!(
+                        (a[k] - b[k]).abs() <= 1e-12 * scale,
+                        "{kernel:?}: {a:?} vs {b:?}"
+                    );
+                }
             }
         }
     }
