@@ -12,7 +12,7 @@ use rayon::prelude::*;
 use crate::adapt::hybrid::{STANDARD, WLS};
 use crate::family::Families;
 use crate::model::diffusion::DiffusionKernel;
-use crate::scheme::ScalarOperator;
+use crate::scheme::VectorOperator;
 use crate::scheme::wls::{self, Basis, FitError};
 
 /// Mask value of held (Dirichlet) nodes, which neither scheme evaluates.
@@ -67,14 +67,15 @@ pub fn corrosion_mask<const D: usize>(
         .collect()
 }
 
-/// The WLS-2 diffusion operator with κ_liq on the Ω_w rows.
+/// The WLS-2 diffusion operator with κ_liq on the Ω_w rows, in stencil form (translated rows
+/// share weights and are evaluated in runs).
 pub fn liquid_operator<const D: usize>(
     mask: &[u8],
     positions: &[[f64; D]],
     families: &Families,
     kernel: &DiffusionKernel,
     k_aux: usize,
-) -> Result<ScalarOperator, FitError> {
+) -> Result<VectorOperator<1>, FitError> {
     let rows: Vec<u32> = (0..mask.len() as u32)
         .filter(|&i| mask[i as usize] == WLS)
         .collect();
@@ -86,7 +87,7 @@ pub fn liquid_operator<const D: usize>(
         kernel.horizon,
         kernel.influence,
     );
-    wls::diffusion_operator(
+    wls::diffusion_stencil_operator(
         &rows,
         positions,
         families,

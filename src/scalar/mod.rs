@@ -20,9 +20,10 @@ use crate::model::diffusion::DiffusionKernel;
 use crate::scene::{
     Condition, Duration, Influence, Physics, Reference, Scene, SceneError, StepSize,
 };
-use crate::scheme::ScalarOperator;
+use crate::scheme::runs::RowRuns;
 use crate::scheme::standard::{self, Quadrature};
 use crate::scheme::wls::{self, Basis};
+use crate::scheme::{ScalarOperator, VectorOperator};
 use crate::sim::{SimError, SimInfo, StageTimers, Stepper};
 
 /// Power iterations for the forward-Euler bound of a (possibly non-symmetric) operator, and
@@ -34,7 +35,9 @@ const DIVERGENCE_FACTOR: f64 = 1e6;
 
 struct FixedHybrid {
     mask: Vec<u8>,
-    wls: ScalarOperator,
+    /// WLS diffusion on Ω_w in stencil form, evaluated over translation runs.
+    wls: VectorOperator<1>,
+    runs: RowRuns,
     rate: Vec<f64>,
 }
 
@@ -230,6 +233,7 @@ impl<const D: usize> ScalarSimulation<D> {
                 let rows = wls.rows.len();
                 Some(FixedHybrid {
                     mask,
+                    runs: RowRuns::new(&wls),
                     wls,
                     rate: vec![0.0; rows],
                 })
@@ -271,8 +275,11 @@ impl<const D: usize> ScalarSimulation<D> {
                         })
                         .reduce(|| 0.0, f64::max)
                 };
-                let gershgorin = disc_radius(&operator, kappa_scale)
-                    .max(hybrid.as_ref().map_or(0.0, |h| disc_radius(&h.wls, 1.0)));
+                let gershgorin = disc_radius(&operator, kappa_scale).max(
+                    hybrid
+                        .as_ref()
+                        .map_or(0.0, |h| h.wls.max_absolute_row_sum()),
+                );
                 let gershgorin_dt = stability::euler_limit(gershgorin);
                 let stable_dt = match scene.time.step {
                     StepSize::Absolute(dt) if dt <= gershgorin_dt => gershgorin_dt,
@@ -282,7 +289,9 @@ impl<const D: usize> ScalarSimulation<D> {
                             operator.apply(v, out);
                             out.iter_mut().for_each(|o| *o *= kappa_scale);
                             if let Some(h) = &hybrid {
-                                h.wls.apply(v, out);
+                                for (r, &i) in h.wls.rows.iter().enumerate() {
+                                    out[i as usize] = h.wls.apply_row_with(r, |j| [v[j]])[0];
+                                }
                             }
                         });
                         stability::euler_limit(radius * SPECTRAL_MARGIN)
@@ -487,7 +496,8 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             None => self.operator.apply_rows(&self.field, &mut self.rate),
         }
         if let Some(h) = self.hybrid.as_mut() {
-            h.wls.apply_rows(&self.field, &mut h.rate);
+            let (rates, _) = h.rate.as_chunks_mut::<1>();
+            h.runs.apply(&h.wls, [&self.field], |_| true, rates);
         }
         let t1 = Instant::now();
         let max_value = self.euler_update(t);

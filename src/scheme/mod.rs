@@ -112,6 +112,28 @@ impl<const D: usize> VectorOperator<D> {
     }
 
     /// Number of distinct stencils (block sets).
+    /// Row r's blocks, in the order of its columns.
+    #[inline]
+    pub fn row_blocks(&self, r: usize) -> &[[[f64; D]; D]] {
+        let first = self.stencil_offsets[self.stencil_of[r] as usize];
+        &self.blocks[first..first + (self.offsets[r + 1] - self.offsets[r])]
+    }
+
+    /// max_r Σ_j Σ_kl |K_rj[k][l]|: a Gershgorin bound on the spectral radius.
+    pub fn max_absolute_row_sum(&self) -> f64 {
+        (0..self.rows.len())
+            .into_par_iter()
+            .map(|r| {
+                self.row_blocks(r)
+                    .iter()
+                    .flatten()
+                    .flatten()
+                    .map(|w| w.abs())
+                    .sum::<f64>()
+            })
+            .reduce(|| 0.0, f64::max)
+    }
+
     pub fn stencil_count(&self) -> usize {
         self.stencil_offsets.len() - 1
     }
@@ -130,8 +152,7 @@ impl<const D: usize> VectorOperator<D> {
         const PARTIALS: usize = 4;
         let mut acc = [[0.0; D]; PARTIALS];
         let columns = &self.columns[self.offsets[r]..self.offsets[r + 1]];
-        let first = self.stencil_offsets[self.stencil_of[r] as usize];
-        let blocks = &self.blocks[first..first + columns.len()];
+        let blocks = self.row_blocks(r);
         let add = |acc: &mut [f64; D], j: u32, block: &[[f64; D]; D]| {
             let u = value(j as usize);
             for k in 0..D {

@@ -429,8 +429,6 @@ pub fn elasticity_operator<const D: usize>(
     horizon: f64,
     k_aux: usize,
 ) -> Result<VectorOperator<D>, FitError> {
-    use rayon::prelude::*;
-    use std::collections::HashMap;
     let scaled: Vec<Vec<nalgebra::RowDVector<f64>>> = l
         .iter()
         .map(|row| {
@@ -439,6 +437,49 @@ pub fn elasticity_operator<const D: usize>(
                 .collect()
         })
         .collect();
+    stenciled_operator(rows, positions, families, basis, horizon, k_aux, |q| {
+        let weights: Vec<Vec<nalgebra::RowDVector<f64>>> = scaled
+            .iter()
+            .map(|row| row.iter().map(|lk| lk * q).collect())
+            .collect();
+        (0..q.ncols())
+            .map(|j| std::array::from_fn(|k| std::array::from_fn(|c| weights[k][c][j])))
+            .collect()
+    })
+}
+
+/// The WLS diffusion operator of [`diffusion_operator`] in stencil form (1 × 1 blocks): rows
+/// with the same collocation geometry share their weights, so translated rows form runs
+/// ([`crate::scheme::runs::RowRuns`]). The weights are those of the first row of each
+/// geometry: equal to the per-row fit's up to rounding.
+pub fn diffusion_stencil_operator<const D: usize>(
+    rows: &[u32],
+    positions: &[[f64; D]],
+    families: &Families,
+    basis: &Basis,
+    l: &[f64],
+    horizon: f64,
+    k_aux: usize,
+) -> Result<VectorOperator<1>, FitError> {
+    let l_scaled = scale_to_fit(basis, l, horizon).transpose();
+    stenciled_operator(rows, positions, families, basis, horizon, k_aux, |q| {
+        (&l_scaled * q).iter().map(|&w| [[w]]).collect()
+    })
+}
+
+/// Collocation sets of `rows`, deduplicated by geometry (relative offsets rounded to 10⁻⁹ δ),
+/// each distinct geometry fitted once and turned into E × E blocks by `blocks`.
+fn stenciled_operator<const D: usize, const E: usize>(
+    rows: &[u32],
+    positions: &[[f64; D]],
+    families: &Families,
+    basis: &Basis,
+    horizon: f64,
+    k_aux: usize,
+    blocks: impl Fn(&DMatrix<f64>) -> Vec<[[f64; E]; E]> + Sync,
+) -> Result<VectorOperator<E>, FitError> {
+    use rayon::prelude::*;
+    use std::collections::HashMap;
     let sets: Vec<Vec<u32>> = rows
         .par_iter()
         .map(|&i| collocation_set(i as usize, positions, families, horizon, k_aux))
@@ -466,17 +507,11 @@ pub fn elasticity_operator<const D: usize>(
             })
         })
         .collect();
-    let stencils: Vec<Vec<[[f64; D]; D]>> = unique
+    let stencils: Vec<Vec<[[f64; E]; E]>> = unique
         .par_iter()
         .map(|&r| {
             let q = fit_matrix(rows[r] as usize, &sets[r], positions, basis, horizon)?;
-            let weights: Vec<Vec<nalgebra::RowDVector<f64>>> = scaled
-                .iter()
-                .map(|row| row.iter().map(|lk| lk * &q).collect())
-                .collect();
-            Ok((0..q.ncols())
-                .map(|j| std::array::from_fn(|k| std::array::from_fn(|c| weights[k][c][j])))
-                .collect())
+            Ok(blocks(&q))
         })
         .collect::<Result<_, FitError>>()?;
     Ok(VectorOperator::new(
