@@ -60,8 +60,8 @@ pub struct Hybrid<const D: usize> {
     check_bonds: u64,
     /// Skips nodes whose bonds provably cannot be critical (policies `all` and `near`).
     motion: Option<MotionBound<D>>,
-    /// Scratch of the filtered check: the nodes that may have a critical bond.
-    flagged: Vec<u32>,
+    /// The last filtered check flagged so many nodes that the next check starts an epoch.
+    epoch_due: bool,
     /// Checked nodes and their family members (the motion bound's tracked nodes), and
     /// whether the check set changed since they were listed.
     tracked: Vec<bool>,
@@ -168,7 +168,7 @@ impl<const D: usize> Hybrid<D> {
                 let reach = families.lengths.iter().fold(0.0, |a: f64, &l| a.max(l));
                 MotionBound::new(reference, reach)
             }),
-            flagged: Vec::new(),
+            epoch_due: false,
             tracked: vec![false; mask_len],
             tracked_stale: true,
             standard_nodes,
@@ -284,13 +284,9 @@ impl<const D: usize> Hybrid<D> {
         let Some(mut motion) = self.motion.take() else {
             return Vec::new();
         };
-        let mut epoch = self.exhaustive || motion.needs_epoch(factor);
+        let epoch = self.exhaustive || self.epoch_due || motion.needs_epoch(factor);
         if !epoch {
             motion.update(positions);
-            self.flagged.clear();
-            let (in_check, mask) = (&self.in_check, &self.mask);
-            motion.flag(|k| in_check[k] && mask[k] == WLS, &mut self.flagged);
-            epoch = self.flagged.len() * 4 > self.check_nodes.len();
         }
         let this = &*self;
         let bonds = BondView::new(reference, positions, families);
@@ -336,24 +332,28 @@ impl<const D: usize> Hybrid<D> {
             motion.start_epoch(positions, factor, |k| tracked[k]);
             self.checked_bonds += self.check_bonds;
             self.full_checks += 1;
+            self.epoch_due = false;
             critical
         } else {
-            // One pass counts the bonds visited and whether any is critical; the critical
-            // nodes are listed (allocated) only when there are some.
-            let (counted, any) = this
-                .flagged
-                .par_iter()
-                .map(|i| (this.bond_count(*i as usize, families), node_critical(i)))
-                .reduce(|| (0, false), |a, b| (a.0 + b.0, a.1 | b.1));
+            // One parallel pass over the cells counts the flagged nodes and the bonds visited
+            // and checks them exactly; the critical nodes are listed (allocated) only when there
+            // are some. Too many flagged nodes: the next check starts an epoch (this one is
+            // exact either way).
+            let in_check_wls = |k: usize| this.in_check[k] && this.mask[k] == WLS;
+            let (flagged, (counted, any)) = motion.fold_flagged(
+                in_check_wls,
+                |i| (this.bond_count(i, families), node_critical(&(i as u32))),
+                (0, false),
+                |a, b| (a.0 + b.0, a.1 | b.1),
+            );
             let critical = if any {
-                this.flagged
-                    .par_iter()
-                    .copied()
-                    .filter(node_critical)
-                    .collect()
+                let mut flagged = Vec::new();
+                motion.flag(in_check_wls, &mut flagged);
+                flagged.into_par_iter().filter(node_critical).collect()
             } else {
                 Vec::new()
             };
+            self.epoch_due = flagged * 4 > self.check_nodes.len();
             self.checked_bonds += counted;
             self.filtered_checks += 1;
             critical

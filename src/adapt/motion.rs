@@ -165,6 +165,32 @@ impl<const D: usize> MotionBound<D> {
         }
     }
 
+    /// Map-reduce over the nodes [`Self::flag`] would list, in parallel over cells and without
+    /// listing them: their number and the reduction of `visit` over them (`zero` its identity).
+    pub fn fold_flagged<T: Send + Sync + Copy>(
+        &self,
+        wanted: impl Fn(usize) -> bool + Sync,
+        visit: impl Fn(usize) -> T + Sync,
+        zero: T,
+        join: impl Fn(T, T) -> T + Sync + Send,
+    ) -> (usize, T) {
+        let join = &join;
+        self.bound
+            .par_iter()
+            .zip(self.least_slack.par_iter())
+            .enumerate()
+            .with_min_len(64)
+            .filter(|(_, (bound, least))| self.reaches(**bound, **least))
+            .map(|(c, _)| {
+                self.cell_nodes[self.cell_offsets[c]..self.cell_offsets[c + 1]]
+                    .iter()
+                    .map(|&k| k as usize)
+                    .filter(|&k| wanted(k) && self.may_reach(k))
+                    .fold((0, zero), |(n, acc), k| (n + 1, join(acc, visit(k))))
+            })
+            .reduce(|| (0, zero), |a, b| (a.0 + b.0, join(a.1, b.1)))
+    }
+
     /// Recomputes the per-cell bounds B_c for the motion since the epoch.
     pub fn update(&mut self, positions: &[[f64; D]]) {
         let (offsets, nodes, epoch) = (&self.tracked_offsets, &self.tracked_nodes, &self.epoch);

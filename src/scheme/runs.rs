@@ -304,35 +304,39 @@ unsafe fn chunk_product_fma<const D: usize, const P: usize>(
     let columns = &op.columns[op.offsets[run]..op.offsets[run + 1]];
     let blocks = op.row_blocks(run);
     let mut acc = [[[[_mm256_setzero_pd(); 2]; D]; D]; P];
-    let add = |acc: &mut [[[__m256d; 2]; D]; D], c: u32, block: &[[f64; D]; D]| {
-        let c = c as usize + shift;
-        for l in 0..D {
-            let lane: &[f64; CHUNK] = u[l][c..c + CHUNK].try_into().expect("8 rows");
-            // SAFETY: `lane` holds 8 f64, read as two unaligned groups of 4.
-            let (lo, hi) = unsafe {
-                (
-                    _mm256_loadu_pd(lane.as_ptr()),
-                    _mm256_loadu_pd(lane.as_ptr().add(4)),
-                )
-            };
-            for k in 0..D {
-                let w = _mm256_set1_pd(block[k][l]);
-                acc[k][l][0] = _mm256_fmadd_pd(w, lo, acc[k][l][0]);
-                acc[k][l][1] = _mm256_fmadd_pd(w, hi, acc[k][l][1]);
+    // A macro, not a closure: a closure taking the accumulators by reference keeps them in
+    // memory (measured: a store per FMA).
+    macro_rules! accumulate {
+        ($acc:expr, $c:expr, $block:expr) => {
+            let c = $c as usize + shift;
+            for l in 0..D {
+                let lane: &[f64; CHUNK] = u[l][c..c + CHUNK].try_into().expect("8 rows");
+                // SAFETY: `lane` holds 8 f64, read as two unaligned groups of 4.
+                let (lo, hi) = unsafe {
+                    (
+                        _mm256_loadu_pd(lane.as_ptr()),
+                        _mm256_loadu_pd(lane.as_ptr().add(4)),
+                    )
+                };
+                for k in 0..D {
+                    let w = _mm256_set1_pd($block[k][l]);
+                    $acc[k][l][0] = _mm256_fmadd_pd(w, lo, $acc[k][l][0]);
+                    $acc[k][l][1] = _mm256_fmadd_pd(w, hi, $acc[k][l][1]);
+                }
             }
-        }
-    };
+        };
+    }
     let (column_groups, block_groups) = (columns.chunks_exact(P), blocks.chunks_exact(P));
     for (&c, block) in column_groups
         .remainder()
         .iter()
         .zip(block_groups.remainder())
     {
-        add(&mut acc[0], c, block);
+        accumulate!(acc[0], c, block);
     }
     for (cs, bs) in column_groups.zip(block_groups) {
         for p in 0..P {
-            add(&mut acc[p], cs[p], &bs[p]);
+            accumulate!(acc[p], cs[p], bs[p]);
         }
     }
     let mut rows = [[0.0; CHUNK]; D];
@@ -370,28 +374,31 @@ unsafe fn chunk_product_avx512<const D: usize, const P: usize>(
     let columns = &op.columns[op.offsets[run]..op.offsets[run + 1]];
     let blocks = op.row_blocks(run);
     let mut acc = [[[_mm512_setzero_pd(); D]; D]; P];
-    let add = |acc: &mut [[__m512d; D]; D], c: u32, block: &[[f64; D]; D]| {
-        let c = c as usize + shift;
-        for l in 0..D {
-            let lane: &[f64; CHUNK] = u[l][c..c + CHUNK].try_into().expect("8 rows");
-            // SAFETY: `lane` holds 8 f64, read unaligned.
-            let values = unsafe { _mm512_loadu_pd(lane.as_ptr()) };
-            for k in 0..D {
-                acc[k][l] = _mm512_fmadd_pd(_mm512_set1_pd(block[k][l]), values, acc[k][l]);
+    // A macro, not a closure (see `chunk_product_fma`).
+    macro_rules! accumulate {
+        ($acc:expr, $c:expr, $block:expr) => {
+            let c = $c as usize + shift;
+            for l in 0..D {
+                let lane: &[f64; CHUNK] = u[l][c..c + CHUNK].try_into().expect("8 rows");
+                // SAFETY: `lane` holds 8 f64, read unaligned.
+                let values = unsafe { _mm512_loadu_pd(lane.as_ptr()) };
+                for k in 0..D {
+                    $acc[k][l] = _mm512_fmadd_pd(_mm512_set1_pd($block[k][l]), values, $acc[k][l]);
+                }
             }
-        }
-    };
+        };
+    }
     let (column_groups, block_groups) = (columns.chunks_exact(P), blocks.chunks_exact(P));
     for (&c, block) in column_groups
         .remainder()
         .iter()
         .zip(block_groups.remainder())
     {
-        add(&mut acc[0], c, block);
+        accumulate!(acc[0], c, block);
     }
     for (cs, bs) in column_groups.zip(block_groups) {
         for p in 0..P {
-            add(&mut acc[p], cs[p], &bs[p]);
+            accumulate!(acc[p], cs[p], bs[p]);
         }
     }
     let mut rows = [[0.0; CHUNK]; D];
