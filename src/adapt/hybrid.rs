@@ -271,9 +271,9 @@ impl<const D: usize> Hybrid<D> {
     }
 
     /// The check under the `all` and `near` policies, filtered by the motion bound: nodes whose
-    /// bound stays below their slack are skipped; the rest are checked exactly. When more than
-    /// a quarter would be checked (or χ changed), an epoch pass checks every node and records
-    /// fresh slacks. Returns the nodes with a critical bond.
+    /// bound stays below their slack are skipped; the rest are checked exactly. After a check
+    /// that flagged more than a quarter of the nodes (or when χ changed), an epoch pass checks
+    /// every node and records fresh slacks. Returns the nodes with a critical bond.
     fn critical_by_motion(
         &mut self,
         reference: &[[f64; D]],
