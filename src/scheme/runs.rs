@@ -157,68 +157,49 @@ impl Kernel {
     }
 }
 
-/// `block_portable` with the chunk product in AVX2 + FMA registers (see `chunk_product_fma`).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2,fma")]
-fn block_avx2<const D: usize>(
-    op: &VectorOperator<D>,
-    runs: &[(u32, u32)],
-    base: usize,
-    u: [&[f64]; D],
-    wanted: &impl Fn(usize) -> bool,
-    out: &mut [[f64; D]],
-) {
-    block_portable(
-        op,
-        runs,
-        base,
-        u,
-        wanted,
-        out,
-        |op, run, shift, u, chunk| {
-            // SAFETY: this function only runs where AVX2 and FMA are present. A scalar
-            // operator (D = 1) sums in 4 partial accumulators, so FMA chains stay independent.
-            unsafe {
-                if D == 1 {
-                    chunk_product_fma::<D, 4>(op, run, shift, u, chunk)
-                } else {
-                    chunk_product_fma::<D, 1>(op, run, shift, u, chunk)
+/// Defines `block_portable` with its chunk product compiled for a target feature set: the
+/// kernel runs in 4 partial accumulators for a scalar operator (D = 1), so FMA chains stay
+/// independent, and in one per (k, l) term otherwise.
+macro_rules! simd_block {
+    ($(#[$doc:meta])* $name:ident, $features:literal, $kernel:ident) => {
+        $(#[$doc])*
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        fn $name<const D: usize>(
+            op: &VectorOperator<D>,
+            runs: &[(u32, u32)],
+            base: usize,
+            u: [&[f64]; D],
+            wanted: &impl Fn(usize) -> bool,
+            out: &mut [[f64; D]],
+        ) {
+            block_portable(op, runs, base, u, wanted, out, |op, run, shift, u, chunk| {
+                // SAFETY: this function only runs where its target features are present
+                // (`Kernel::fastest`, `Kernel::supported`).
+                unsafe {
+                    if D == 1 {
+                        $kernel::<D, 4>(op, run, shift, u, chunk)
+                    } else {
+                        $kernel::<D, 1>(op, run, shift, u, chunk)
+                    }
                 }
-            }
-        },
-    )
+            })
+        }
+    };
 }
 
-/// `block_portable` with the chunk product in AVX-512 registers (one register per 8 rows).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn block_avx512<const D: usize>(
-    op: &VectorOperator<D>,
-    runs: &[(u32, u32)],
-    base: usize,
-    u: [&[f64]; D],
-    wanted: &impl Fn(usize) -> bool,
-    out: &mut [[f64; D]],
-) {
-    block_portable(
-        op,
-        runs,
-        base,
-        u,
-        wanted,
-        out,
-        |op, run, shift, u, chunk| {
-            // SAFETY: this function only runs where AVX-512F is present (partials as above).
-            unsafe {
-                if D == 1 {
-                    chunk_product_avx512::<D, 4>(op, run, shift, u, chunk)
-                } else {
-                    chunk_product_avx512::<D, 1>(op, run, shift, u, chunk)
-                }
-            }
-        },
-    )
-}
+simd_block!(
+    /// `block_portable` with the chunk product in AVX2 + FMA registers (see `chunk_product_fma`).
+    block_avx2,
+    "avx,avx2,fma",
+    chunk_product_fma
+);
+simd_block!(
+    /// `block_portable` with the chunk product in AVX-512 registers (one register per 8 rows).
+    block_avx512,
+    "avx512f",
+    chunk_product_avx512
+);
 
 #[inline(always)]
 fn block_portable<const D: usize>(
