@@ -16,6 +16,8 @@ pub struct EntityContent {
     pub points: BTreeMap<i64, usize>,
     /// step → raw per-node values (the component named after the field).
     pub values: BTreeMap<i64, Vec<f32>>,
+    /// step → per-node class ids (masks such as `nodes/scheme` and `nodes/phase`).
+    pub classes: BTreeMap<i64, Vec<u16>>,
     /// step → scalar value.
     pub scalars: BTreeMap<i64, f64>,
     pub texts: Vec<String>,
@@ -41,6 +43,7 @@ pub fn read(path: &Path) -> Result<Recording, String> {
             let entry = merged.entities.entry(name).or_default();
             entry.points.extend(content.points);
             entry.values.extend(content.values);
+            entry.classes.extend(content.classes);
             entry.scalars.extend(content.scalars);
             entry.texts.extend(content.texts);
         }
@@ -60,6 +63,8 @@ pub fn read_each(path: &Path) -> Result<Vec<(String, Recording)>, String> {
     let text: ComponentIdentifier = rerun::TextDocument::descriptor_text().component;
     let log_text: ComponentIdentifier = rerun::TextLog::descriptor_text().component;
     let scalar: ComponentIdentifier = rerun::Scalars::descriptor_scalars().component;
+    let class2: ComponentIdentifier = rerun::Points2D::descriptor_class_ids().component;
+    let class3: ComponentIdentifier = rerun::Points3D::descriptor_class_ids().component;
     let mut out: Vec<(String, Recording)> = Vec::new();
     for msg in decoder {
         let msg = msg.map_err(|e| format!("{}: {e}", path.display()))?;
@@ -96,6 +101,13 @@ pub fn read_each(path: &Path) -> Result<Vec<(String, Recording)>, String> {
                     .zip(chunk.iter_slices::<[f32; 3]>(id))
                 {
                     entry.points.insert(t.as_i64(), p.len());
+                }
+            } else if id == class2 || id == class3 {
+                for ((t, _), c) in chunk
+                    .iter_component_indices(step, id)
+                    .zip(chunk.iter_slices::<u16>(id))
+                {
+                    entry.classes.insert(t.as_i64(), c.to_vec());
                 }
             } else if id == text || id == log_text {
                 for texts in chunk.iter_slices::<String>(id) {

@@ -673,10 +673,8 @@ impl<const D: usize> Simulation<D> {
             vec![ClassField {
                 name: "scheme",
                 ids,
-                classes: &[
-                    (hybrid::STANDARD as u16, "standard", [230, 85, 13]),
-                    (hybrid::WLS as u16, "WLS", [49, 130, 189]),
-                ],
+                // Standard and WLS (no held layers in dynamic scenes).
+                classes: &crate::scalar::hybrid::SCHEME_CLASSES[..2],
             }],
             events,
         )

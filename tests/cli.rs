@@ -5,6 +5,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
+use peridyn::adapt::hybrid::{STANDARD, WLS};
+use peridyn::model::corrosion::SOLID;
 use peridyn::readback;
 
 fn peridyn(args: &[&str]) -> Output {
@@ -518,4 +520,81 @@ fn hybrid_recording_holds_the_scheme_mask_and_omega_s_fraction() {
     let violations = &rec.entity("/metrics/hybrid/violations").unwrap().scalars;
     assert!(violations.values().all(|&v| v == 0.0));
     assert!(rec.entity("/metrics/hybrid/chi").is_some());
+    // The mask's class ids agree with the logged Ω_s fraction, frame by frame.
+    for (step, ids) in &scheme.classes {
+        let standard = ids.iter().filter(|&&c| c == STANDARD as u16).count();
+        let fraction = standard as f64 / ids.len() as f64;
+        assert!((fraction - fractions[step]).abs() < 1e-12, "step {step}");
+    }
+    assert_eq!(scheme.classes.len(), scheme.points.len());
+    assert!(
+        rec.entity("/log/events")
+            .unwrap()
+            .texts
+            .iter()
+            .any(|t| t.contains("nodes switched to the standard scheme")),
+        "switching events logged"
+    );
+}
+
+/// A corrosion recording holds what a viewer needs to watch the specimen dissolve: the
+/// concentration, the phase and scheme masks (class ids) every frame, the volume loss and the
+/// Ω_s fraction; no pointwise error field (there is no reference solution to compare with).
+#[test]
+fn corrosion_recording_holds_concentration_phase_and_scheme_masks() {
+    let path = temp("corrosion-3d-small.rrd");
+    run_ok(&[
+        "record",
+        "corrosion-3d",
+        "--variant",
+        "small",
+        // A high saturation makes the specimen dissolve within 300 steps.
+        "--set",
+        "material.saturation=\"60000 mol/m^3\"",
+        "--steps",
+        "300",
+        "--every",
+        "100",
+        "-o",
+        path.to_str().unwrap(),
+        "-q",
+    ]);
+    let rec = readback::read(&path).unwrap();
+    let frames = [0, 100, 200, 300];
+    assert_eq!(steps_of(&rec, "/nodes/concentration"), frames);
+    assert!(rec.entity("/nodes/error").is_none());
+    assert!(rec.entity("/metrics/error/max_abs").is_none());
+    let phase = &rec.entity("/nodes/phase").unwrap().classes;
+    let scheme = &rec.entity("/nodes/scheme").unwrap().classes;
+    let solid_nodes = &rec
+        .entity("/metrics/corrosion/solid_nodes")
+        .unwrap()
+        .scalars;
+    let loss = &rec
+        .entity("/metrics/corrosion/volume_loss")
+        .unwrap()
+        .scalars;
+    let omega_s = &rec
+        .entity("/metrics/hybrid/omega_s_fraction")
+        .unwrap()
+        .scalars;
+    let mut solid_before = usize::MAX;
+    for step in frames {
+        let (phase, scheme) = (&phase[&step], &scheme[&step]);
+        let solid = phase.iter().filter(|&&p| p == SOLID as u16).count();
+        assert_eq!(solid as f64, solid_nodes[&step], "step {step}");
+        assert!(solid <= solid_before, "the solid only shrinks");
+        solid_before = solid;
+        // No solid node in Ω_w, and the mask's share is the logged Ω_s fraction.
+        assert!(
+            phase
+                .iter()
+                .zip(scheme)
+                .all(|(&p, &m)| !(p == SOLID as u16 && m == WLS as u16))
+        );
+        let standard = scheme.iter().filter(|&&m| m == STANDARD as u16).count();
+        assert!((standard as f64 / scheme.len() as f64 - omega_s[&step]).abs() < 1e-12);
+    }
+    assert_eq!(loss[&0], 0.0);
+    assert!(loss[&300] > 0.05, "the specimen dissolved: {}", loss[&300]);
 }

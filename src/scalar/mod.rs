@@ -534,16 +534,14 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
 
     fn frame(&mut self) -> Frame {
         let t = self.time();
-        let error: Vec<f64> = match self.reference {
-            Some(r) => self
-                .positions
+        // The pointwise error exists only against a reference (none in corrosion scenes).
+        let error: Option<Vec<f64>> = self.reference.map(|r| {
+            self.positions
                 .iter()
                 .zip(&self.field)
                 .map(|(x, v)| v - r.value(x, t))
-                .collect(),
-            None => vec![0.0; self.field.len()],
-        };
-        let max_error = error.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+                .collect()
+        });
         let now = Instant::now();
         let steps_since = self.step.saturating_sub(self.last_frame.0);
         let step_wall = if steps_since > 0 {
@@ -560,16 +558,40 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             .sum();
         let mut scalars = vec![
             ("field/integral".to_string(), integral),
-            ("error/max_abs".to_string(), max_error),
             ("timing/step_wall_s".to_string(), step_wall),
         ];
-        if let Some(e) = self.relative_error() {
-            scalars.push(("error/relative_l2".to_string(), e));
-        }
-        let name = match self.scene.physics {
-            Physics::Static => "displacement",
-            _ => "concentration",
+        let amplitude = if self.amplitude > 0.0 {
+            self.amplitude
+        } else {
+            1.0
         };
+        // Concentrations of corrosion scenes are never negative: the colormap spans [0, max].
+        let lowest = if self.corrosion.is_some() {
+            0.0
+        } else {
+            -amplitude
+        };
+        let mut fields = vec![NodeField {
+            name: match self.scene.physics {
+                Physics::Static => "displacement",
+                _ => "concentration",
+            },
+            values: self.field.clone(),
+            range: (lowest, amplitude),
+        }];
+        if let Some(error) = error {
+            let max_error = error.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+            scalars.push(("error/max_abs".to_string(), max_error));
+            if let Some(e) = self.relative_error() {
+                scalars.push(("error/relative_l2".to_string(), e));
+            }
+            let range = if max_error > 0.0 { max_error } else { 1.0 };
+            fields.push(NodeField {
+                name: "error",
+                values: error,
+                range: (-range, range),
+            });
+        }
         let mut classes = Vec::new();
         if let Some(c) = &self.corrosion {
             scalars.push((
@@ -608,29 +630,12 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
                 classes: hybrid::SCHEME_CLASSES,
             });
         }
-        let amplitude = if self.amplitude > 0.0 {
-            self.amplitude
-        } else {
-            1.0
-        };
-        let error_range = if max_error > 0.0 { max_error } else { 1.0 };
         Frame {
             step: self.step,
             time: t,
             dim: D,
             positions: self.positions.iter().flatten().copied().collect(),
-            fields: vec![
-                NodeField {
-                    name,
-                    values: self.field.clone(),
-                    range: (-amplitude, amplitude),
-                },
-                NodeField {
-                    name: "error",
-                    values: error,
-                    range: (-error_range, error_range),
-                },
-            ],
+            fields,
             classes,
             events: std::mem::take(&mut self.events),
             scalars,
