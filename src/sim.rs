@@ -265,9 +265,10 @@ impl<const D: usize> Simulation<D> {
         let scheme = standard_view(&lattice, &families, &law, &quadrature, uniform_volume);
         let gershgorin_dt = integrate::stable_step(m.density, &scheme.stiffness_sums());
         let masses: Vec<f64> = lattice.volumes.iter().map(|v| v * m.density).collect();
+        let coefficients = scheme.linearized_coefficients(m.density);
         let lambda_max =
             stability::max_eigenvalue::<D>(lattice.len(), &masses, POWER_ITERATIONS, |u, out| {
-                scheme.apply_linearized(&intact, m.density, u, out)
+                scheme.apply_linearized(&coefficients, &intact, u, out)
             });
         // The Rayleigh quotient approaches λ_max from below: keep a margin, and never go
         // below the guaranteed (3.8) bound.
@@ -300,7 +301,7 @@ impl<const D: usize> Simulation<D> {
                         let u = v.as_chunks::<D>().0;
                         let out = out.as_chunks_mut::<D>().0;
                         let mask = h.mask();
-                        scheme.apply_linearized_masked(&intact, m.density, u, out, |i| {
+                        scheme.apply_linearized_masked(&coefficients, &intact, u, out, |i| {
                             mask[i] == hybrid::WLS
                         });
                         h.apply_linearized(u, m.density, out);

@@ -602,11 +602,18 @@ impl<const D: usize> Hybrid<D> {
 
     /// The linearized operator per unit mass on the Ω_w rows, −K u / ρ (the sign of the
     /// standard scheme's `apply_linearized`), for stable-step estimates; other rows untouched.
+    /// Rows in parallel; allocates the row values (setup work: power iterations).
     pub fn apply_linearized(&self, u: &[[f64; D]], density: f64, out: &mut [[f64; D]]) {
         let (op, mask) = (&self.wls, &self.mask);
-        for (r, &i) in op.rows.iter().enumerate() {
-            if mask[i as usize] == WLS {
-                out[i as usize] = op.apply_row(r, u).map(|f| -f / density);
+        let rows: Vec<Option<[f64; D]>> = op
+            .rows
+            .par_iter()
+            .enumerate()
+            .map(|(r, &i)| (mask[i as usize] == WLS).then(|| op.apply_row(r, u)))
+            .collect();
+        for (&i, force) in op.rows.iter().zip(rows) {
+            if let Some(force) = force {
+                out[i as usize] = force.map(|f| -f / density);
             }
         }
     }

@@ -214,31 +214,51 @@ impl<const D: usize> Standard<'_, D> {
             .sum()
     }
 
+    /// Per-bond coefficients c ω β V_j / (ρ ‖ξ‖³) of the linearized operator of (3.1) per
+    /// unit mass (see [`Self::apply_linearized`]): computed once, so each power iteration of
+    /// a stable-step estimate streams one number per bond.
+    pub fn linearized_coefficients(&self, density: f64) -> Vec<f64> {
+        let (families, law) = (self.families, self.law);
+        let c = law.micromodulus / density;
+        families
+            .lengths
+            .par_iter()
+            .zip(&families.neighbors)
+            .with_min_len(4096)
+            .map(|(&l, &j)| {
+                c * influence(law.influence, l, law.horizon)
+                    * self.quadrature.beta(l)
+                    * self.volumes[j as usize]
+                    / (l * l * l)
+            })
+            .collect()
+    }
+
     /// The linearized operator of (3.1) per unit mass, applied to a displacement field:
     /// out_i = (1/ρ) Σ_j ω c (ξ⊗ξ/‖ξ‖³) (u_i − u_j) β V_j over intact bonds (the stiffness
-    /// the stable-step bound needs; positive semi-definite in the mass inner product).
+    /// the stable-step bound needs; positive semi-definite in the mass inner product), with
+    /// the `coefficients` of [`Self::linearized_coefficients`].
     pub fn apply_linearized(
         &self,
+        coefficients: &[f64],
         intact: &[u8],
-        density: f64,
         u: &[[f64; D]],
         out: &mut [[f64; D]],
     ) {
-        self.apply_linearized_masked(intact, density, u, out, |_| false);
+        self.apply_linearized_masked(coefficients, intact, u, out, |_| false);
     }
 
     /// [`Self::apply_linearized`] on the rows not `skip`ped (others left untouched): the
     /// standard part of a hybrid operator.
     pub fn apply_linearized_masked(
         &self,
+        coefficients: &[f64],
         intact: &[u8],
-        density: f64,
         u: &[[f64; D]],
         out: &mut [[f64; D]],
         skip: impl Fn(usize) -> bool + Sync,
     ) {
-        let (families, law, reference) = (self.families, self.law, self.reference);
-        let c = law.micromodulus / density;
+        let (families, reference) = (self.families, self.reference);
         out.par_iter_mut()
             .enumerate()
             .with_min_len(256)
@@ -250,19 +270,13 @@ impl<const D: usize> Standard<'_, D> {
                         continue;
                     }
                     let j = families.neighbors[b] as usize;
-                    let l = families.lengths[b];
                     let mut xi = [0.0; D];
                     let mut proj = 0.0;
                     for k in 0..D {
                         xi[k] = reference[j][k] - reference[i][k];
                         proj += xi[k] * (u[i][k] - u[j][k]);
                     }
-                    let scale = c
-                        * influence(law.influence, l, law.horizon)
-                        * self.quadrature.beta(l)
-                        * self.volumes[j]
-                        / (l * l * l)
-                        * proj;
+                    let scale = coefficients[b] * proj;
                     for k in 0..D {
                         acc[k] += scale * xi[k];
                     }
