@@ -180,12 +180,33 @@ pub fn collocation_set<const D: usize>(
     horizon: f64,
     k_aux: usize,
 ) -> Vec<u32> {
+    let candidates = collocation_candidates(i, families);
+    select_collocation_set(i, &candidates, positions, horizon, k_aux)
+}
+
+/// A node's collocation candidates: itself and its family, in index order.
+fn collocation_candidates(i: usize, families: &Families) -> Vec<u32> {
+    let mut candidates: Vec<u32> = families.range(i).map(|b| families.neighbors[b]).collect();
+    // Families are kept in index order: the node goes in at its place.
+    if candidates.is_sorted() {
+        candidates.insert(candidates.partition_point(|&j| j < i as u32), i as u32);
+    } else {
+        candidates.push(i as u32);
+        candidates.sort_unstable();
+    }
+    candidates
+}
+
+/// [`collocation_set`] among given `candidates` (in index order, the node included).
+fn select_collocation_set<const D: usize>(
+    i: usize,
+    candidates: &[u32],
+    positions: &[[f64; D]],
+    horizon: f64,
+    k_aux: usize,
+) -> Vec<u32> {
     let h = horizon / k_aux as f64;
     let k = k_aux as i64;
-    let mut candidates: Vec<u32> = std::iter::once(i as u32)
-        .chain(families.range(i).map(|b| families.neighbors[b]))
-        .collect();
-    candidates.sort_unstable();
     let mut chosen = vec![i as u32];
     let mut taken = vec![false; candidates.len()];
     if let Ok(self_slot) = candidates.binary_search(&(i as u32)) {
@@ -265,6 +286,74 @@ pub fn collocation_set<const D: usize>(
         break;
     }
     chosen
+}
+
+/// Collocation sets of `rows` (in parallel), each equal to [`collocation_set`]. On a uniform
+/// lattice most rows are translates of each other: a row whose candidates (node and family in
+/// index order) have, slot by slot, the offsets of the first largest row's candidates to
+/// 10⁻¹² δ gets that row's choice of slots without a search. The choice depends only on the
+/// offsets and the slot order (ties go to the lower slot), so it is the same set; any other
+/// row (boundaries, cut bonds, perturbed lattices) is searched in full.
+pub fn collocation_sets<const D: usize>(
+    rows: &[u32],
+    positions: &[[f64; D]],
+    families: &Families,
+    horizon: f64,
+    k_aux: usize,
+) -> Vec<Vec<u32>> {
+    collocation_sets_counted(rows, positions, families, horizon, k_aux).0
+}
+
+/// [`collocation_sets`] and how many rows took the translated template.
+fn collocation_sets_counted<const D: usize>(
+    rows: &[u32],
+    positions: &[[f64; D]],
+    families: &Families,
+    horizon: f64,
+    k_aux: usize,
+) -> (Vec<Vec<u32>>, usize) {
+    use rayon::prelude::*;
+    let largest = rows.iter().map(|&i| i as usize).reduce(|a, b| {
+        if families.range(b).len() > families.range(a).len() {
+            b
+        } else {
+            a
+        }
+    });
+    let Some(t) = largest else {
+        return (Vec::new(), 0);
+    };
+    let template = collocation_candidates(t, families);
+    let offset = |i: usize, j: u32| -> [f64; D] {
+        std::array::from_fn(|a| positions[j as usize][a] - positions[i][a])
+    };
+    let template_offsets: Vec<[f64; D]> = template.iter().map(|&j| offset(t, j)).collect();
+    let template_slots: Vec<usize> =
+        select_collocation_set(t, &template, positions, horizon, k_aux)
+            .iter()
+            .filter_map(|j| template.binary_search(j).ok())
+            .collect();
+    let tolerance = 1e-12 * horizon;
+    let sets: Vec<(Vec<u32>, bool)> = rows
+        .par_iter()
+        .map(|&i| {
+            let i = i as usize;
+            let candidates = collocation_candidates(i, families);
+            let translated = candidates.len() == template.len()
+                && candidates.iter().zip(&template_offsets).all(|(&j, o)| {
+                    let d = offset(i, j);
+                    (0..D).all(|a| (d[a] - o[a]).abs() <= tolerance)
+                });
+            let set = if translated {
+                template_slots.iter().map(|&s| candidates[s]).collect()
+            } else {
+                select_collocation_set(i, &candidates, positions, horizon, k_aux)
+            };
+            (set, translated)
+        })
+        .collect();
+    let translated = sets.iter().filter(|(_, t)| *t).count();
+    (sets.into_iter().map(|(set, _)| set).collect(), translated)
 }
 
 /// Order of two (squared distance, slot) candidates of a collocation target on an auxiliary
@@ -390,9 +479,10 @@ fn fitted_rows<const D: usize, T: Send>(
     block: impl Fn(&DMatrix<f64>) -> Vec<T> + Sync,
 ) -> Result<Vec<Row<T>>, FitError> {
     use rayon::prelude::*;
-    rows.par_iter()
-        .map(|&i| {
-            let set = collocation_set(i as usize, positions, families, horizon, k_aux);
+    collocation_sets(rows, positions, families, horizon, k_aux)
+        .into_par_iter()
+        .zip(rows)
+        .map(|(set, &i)| {
             let q = fit_matrix(i as usize, &set, positions, basis, horizon)?;
             Ok((set, block(&q)))
         })
@@ -480,10 +570,7 @@ fn stenciled_operator<const D: usize, const E: usize>(
 ) -> Result<VectorOperator<E>, FitError> {
     use rayon::prelude::*;
     use std::collections::HashMap;
-    let sets: Vec<Vec<u32>> = rows
-        .par_iter()
-        .map(|&i| collocation_set(i as usize, positions, families, horizon, k_aux))
-        .collect();
+    let sets = collocation_sets(rows, positions, families, horizon, k_aux);
     let key = |i: u32, set: &[u32]| -> Vec<i64> {
         set.iter()
             .flat_map(|&j| {
@@ -672,6 +759,57 @@ mod tests {
         check::<2>(5, 0.45, 4);
         check::<3>(3, 0.0, 3);
         check::<3>(3, 0.3, 3);
+    }
+
+    /// The translated-template shortcut of `collocation_sets` gives every row the set its own
+    /// search gives, on uniform lattices (where it serves most rows) and perturbed ones (where
+    /// it serves none), and in a body with a hole.
+    #[test]
+    fn collocation_sets_equal_the_search_row_by_row() {
+        fn check<const D: usize>(solid: Solid, m: usize, perturbation: f64, k_aux: usize) {
+            let lattice = Lattice::<D>::build(&solid, 1.0, [-perturbation, perturbation], 5);
+            let horizon = m as f64;
+            let families = Families::build(&lattice.positions, horizon * (1.0 + 1e-9));
+            let rows: Vec<u32> = (0..lattice.len() as u32).collect();
+            let (sets, translated) =
+                collocation_sets_counted(&rows, &lattice.positions, &families, horizon, k_aux);
+            eprintln!(
+                "{D}D, perturbation {perturbation}: {translated} of {} rows translated",
+                rows.len()
+            );
+            if perturbation == 0.0 {
+                assert!(
+                    translated > rows.len() / 10,
+                    "the shortcut serves the interior"
+                );
+            } else {
+                assert!(translated <= 1, "only the template itself");
+            }
+            for (&i, set) in rows.iter().zip(&sets) {
+                assert_eq!(
+                    set,
+                    &collocation_set(i as usize, &lattice.positions, &families, horizon, k_aux),
+                    "node {i}, {D}D, m = {m}, perturbation {perturbation}"
+                );
+            }
+        }
+        let plate = Solid::Box {
+            min: vec![0.0, 0.0],
+            max: vec![24.0, 16.0],
+        };
+        check::<2>(plate.clone(), 4, 0.0, 3);
+        check::<2>(plate, 4, 0.3, 3);
+        let holed = Solid::Difference {
+            base: Box::new(Solid::Box {
+                min: vec![0.0; 3],
+                max: vec![16.0; 3],
+            }),
+            minus: vec![Solid::Sphere {
+                center: vec![8.0; 3],
+                radius: 2.0,
+            }],
+        };
+        check::<3>(holed, 3, 0.0, 3);
     }
 
     #[test]
