@@ -674,8 +674,7 @@ impl<const D: usize> Simulation<D> {
             vec![ClassField {
                 name: "scheme",
                 ids,
-                // Standard and WLS (no held layers in dynamic scenes).
-                classes: &crate::scalar::hybrid::SCHEME_CLASSES[..2],
+                classes: &hybrid::SCHEME_CLASSES[..2],
             }],
             events,
         )

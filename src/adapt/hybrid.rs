@@ -20,9 +20,18 @@ use crate::scheme::VectorOperator;
 use crate::scheme::runs::RowRuns;
 use crate::scheme::wls::{self, Basis, FitError};
 
-/// Mask values.
+/// Mask values. HELD marks Dirichlet nodes of scalar scenes, which neither scheme evaluates.
 pub const STANDARD: u8 = 0;
 pub const WLS: u8 = 1;
+pub const HELD: u8 = 2;
+
+/// Class ids, names and colours of the `nodes/scheme` field (dynamic scenes use the first
+/// two: they hold no layers).
+pub const SCHEME_CLASSES: &[(u16, &str, [u8; 3])] = &[
+    (STANDARD as u16, "standard", [230, 85, 13]),
+    (WLS as u16, "WLS", [49, 130, 189]),
+    (HELD as u16, "held", [120, 120, 120]),
+];
 
 /// A switching event: at `step` (time `time`), `nodes` nodes moved to Ω_s.
 #[derive(Debug, Clone, PartialEq)]

@@ -9,21 +9,11 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
-use crate::adapt::hybrid::{STANDARD, WLS};
+use crate::adapt::hybrid::{HELD, STANDARD, WLS};
 use crate::family::Families;
 use crate::model::diffusion::DiffusionKernel;
 use crate::scheme::VectorOperator;
 use crate::scheme::wls::{self, Basis, FitError};
-
-/// Mask value of held (Dirichlet) nodes, which neither scheme evaluates.
-pub const HELD: u8 = 2;
-
-/// Class ids, names and colours of the `nodes/scheme` field of scalar scenes.
-pub const SCHEME_CLASSES: &[(u16, &str, [u8; 3])] = &[
-    (STANDARD as u16, "standard", [230, 85, 13]),
-    (WLS as u16, "WLS", [49, 130, 189]),
-    (HELD as u16, "held", [120, 120, 120]),
-];
 
 /// Ω_s of the fixed corrosion hybrid: nodes within `band` of an initially solid node; held
 /// nodes are marked [`HELD`], all others Ω_w.

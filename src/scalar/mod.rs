@@ -627,7 +627,7 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             classes.push(ClassField {
                 name: "scheme",
                 ids: h.mask.iter().map(|&m| u16::from(m)).collect(),
-                classes: hybrid::SCHEME_CLASSES,
+                classes: adapt::hybrid::SCHEME_CLASSES,
             });
         }
         Frame {
