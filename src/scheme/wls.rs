@@ -293,7 +293,7 @@ fn select_collocation_set<const D: usize>(
 /// index order) have, slot by slot, the offsets of the first largest row's candidates to
 /// 10⁻¹² δ gets that row's choice of slots without a search. The choice depends only on the
 /// offsets and the slot order (ties go to the lower slot), so it is the same set; any other
-/// row (boundaries, cut bonds, perturbed lattices) is searched in full.
+/// row (boundaries, holes, perturbed lattices) is searched in full.
 pub fn collocation_sets<const D: usize>(
     rows: &[u32],
     positions: &[[f64; D]],
