@@ -18,41 +18,66 @@ pub struct Families {
 impl Families {
     /// Families within `radius` (each node excluded from its own family), sorted by index.
     pub fn build<const D: usize>(positions: &[[f64; D]], radius: f64) -> Self {
-        let mut rows: Vec<Vec<(u32, f64)>> = Vec::new();
-        if !positions.is_empty() {
-            let tree: ImmutableKdTree<f64, D> = ImmutableKdTree::new_from_slice(positions)
-                .expect("a k-d tree over finite lattice coordinates");
-            let r2 = radius * radius;
-            rows = positions
-                .par_iter()
-                .enumerate()
-                .map(|(i, x)| {
-                    let mut row: Vec<(u32, f64)> = tree
-                        .query(x)
-                        .within::<SquaredEuclidean<f64>>(r2)
-                        .unsorted()
-                        .execute()
-                        .into_iter()
-                        .filter(|n| n.item as usize != i)
-                        .map(|n| (n.item, n.distance.sqrt()))
-                        .collect();
-                    row.sort_unstable_by_key(|&(j, _)| j);
-                    row
-                })
-                .collect();
+        let mut offsets = vec![0];
+        if positions.is_empty() {
+            return Families {
+                offsets,
+                neighbors: Vec::new(),
+                lengths: Vec::new(),
+            };
         }
-        let mut offsets = Vec::with_capacity(positions.len() + 1);
-        offsets.push(0);
-        let total: usize = rows.iter().map(Vec::len).sum();
-        let mut neighbors = Vec::with_capacity(total);
-        let mut lengths = Vec::with_capacity(total);
-        for row in rows {
-            for (j, r) in row {
-                neighbors.push(j);
-                lengths.push(r);
-            }
-            offsets.push(neighbors.len());
+        let tree: ImmutableKdTree<f64, D> = ImmutableKdTree::new_from_slice(positions)
+            .expect("a k-d tree over finite lattice coordinates");
+        let r2 = radius * radius;
+        // Each family sorted by index as one u64 key per neighbor (index above, its place in
+        // the query's answer below): cheaper to sort than (index, length) pairs.
+        let rows: Vec<(Vec<u32>, Vec<f64>)> = positions
+            .par_iter()
+            .enumerate()
+            .map(|(i, x)| {
+                let found = tree
+                    .query(x)
+                    .within::<SquaredEuclidean<f64>>(r2)
+                    .unsorted()
+                    .execute();
+                let mut keys: Vec<u64> = found
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, n)| n.item as usize != i)
+                    .map(|(k, n)| (u64::from(n.item) << 32) | k as u64)
+                    .collect();
+                keys.sort_unstable();
+                let neighbors = keys.iter().map(|k| (k >> 32) as u32).collect();
+                let lengths = keys
+                    .iter()
+                    .map(|&k| found[(k & 0xffff_ffff) as usize].distance.sqrt())
+                    .collect();
+                (neighbors, lengths)
+            })
+            .collect();
+        offsets.reserve(rows.len());
+        for (row, _) in &rows {
+            offsets.push(offsets[offsets.len() - 1] + row.len());
         }
+        let total = offsets[rows.len()];
+        let mut neighbors = vec![0u32; total];
+        let mut lengths = vec![0.0; total];
+        // The rows copied into place in parallel, each into its own slice.
+        let mut slices = Vec::with_capacity(rows.len());
+        let (mut neighbors_rest, mut lengths_rest) =
+            (neighbors.as_mut_slice(), lengths.as_mut_slice());
+        for (row, _) in &rows {
+            let (n, n_rest) = std::mem::take(&mut neighbors_rest).split_at_mut(row.len());
+            let (l, l_rest) = std::mem::take(&mut lengths_rest).split_at_mut(row.len());
+            slices.push((n, l));
+            (neighbors_rest, lengths_rest) = (n_rest, l_rest);
+        }
+        slices.into_par_iter().zip(rows.par_iter()).for_each(
+            |((n, l), (row_neighbors, row_lengths))| {
+                n.copy_from_slice(row_neighbors);
+                l.copy_from_slice(row_lengths);
+            },
+        );
         assert!(neighbors.iter().all(|&j| (j as usize) < positions.len()));
         Families {
             offsets,
