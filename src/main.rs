@@ -481,6 +481,16 @@ fn print_summary(s: &RunSummary, frames_written: u64) {
             }
         }
     }
+    if let Some(f) = &s.last_frame {
+        let hash = |values: &[f64]| control::driver::field_hash(values.iter().map(|v| v.to_bits()));
+        let mut hashes = vec![format!("positions {:016x}", hash(&f.positions))];
+        hashes.extend(f.fields.iter().map(|n| format!("{} {:016x}", n.name, hash(&n.values))));
+        hashes.extend(f.classes.iter().map(|c| {
+            let ids = control::driver::field_hash(c.ids.iter().map(|&v| v as u64));
+            format!("{} {ids:016x}", c.name)
+        }));
+        println!("final time: {:e} s  field hashes: {}", f.time, hashes.join(", "));
+    }
     for (name, angle) in &s.crack_angles {
         match angle {
             Some(a) => println!("crack angle {name}: {a:.1}°"),
