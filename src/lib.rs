@@ -1,15 +1,17 @@
 //! peridyn: adaptive peridynamic simulations, watched and measured live.
 //!
-//! Data flows one way: `scene` (validated preset) → `grid` + `family` (discretization) →
-//! `scheme` operators with `model` laws → `sim` (stepping) → `frame` snapshots → sinks
-//! (`record` for Rerun). The solver core knows nothing of Rerun or user interfaces.
+//! Data flows one way: `scene` (validated preset) → `discretization` (lattice, families,
+//! per-node store) → `scheme` operators with `model` laws → `adapt` (changes between steps) →
+//! `sim` simulations on the `solver` contract (clock, stages, `Stepper`) → `frame` snapshots →
+//! sinks (`record` for Rerun) → `control`, `panel`, the CLI. The solver core knows nothing of
+//! Rerun or user interfaces. Papers are cited by the short ids of `REFERENCES.md`.
 
 pub mod adapt;
 pub mod bench;
+pub mod cli;
 pub mod control;
-pub mod family;
+pub mod discretization;
 pub mod frame;
-pub mod grid;
 pub mod integrate;
 pub mod metrics;
 pub mod model;
@@ -19,7 +21,7 @@ pub mod record;
 pub mod replay;
 pub mod report;
 pub mod runner;
-pub mod scalar;
 pub mod scene;
 pub mod scheme;
 pub mod sim;
+pub mod solver;

@@ -2,7 +2,7 @@
 
 use std::collections::VecDeque;
 
-use crate::family::Families;
+use crate::discretization::family::Families;
 use crate::scene::CrackAngleSpec;
 
 /// Kinetic energy Σ ½ ρ V |v|² and linear momentum Σ ρ V v.

@@ -5,7 +5,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use crate::frame::Frame;
-use crate::sim::{SimError, SimInfo, Stepper};
+use crate::solver::{SimError, SimInfo, Stepper};
 
 /// Where frames go. Implementations must not slow the solver: `send` should only hand the
 /// frame to another thread.
@@ -61,10 +61,9 @@ impl RunSummary {
             broken_bonds: sim.broken_bonds(),
             relative_error: sim.relative_error(),
             stages: sim
-                .timers()
+                .stages()
                 .named()
-                .iter()
-                .map(|(n, d)| (*n, d.as_secs_f64()))
+                .map(|(n, d)| (n, d.as_secs_f64()))
                 .collect(),
             steps: sim.steps_done(),
             info: sim.info(),

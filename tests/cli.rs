@@ -5,8 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
-use peridyn::adapt::hybrid::{STANDARD, WLS};
-use peridyn::model::corrosion::SOLID;
+use peridyn::adapt::masks::{Phase, SchemeClass};
 use peridyn::readback;
 
 fn peridyn(args: &[&str]) -> Output {
@@ -522,7 +521,7 @@ fn hybrid_recording_holds_the_scheme_mask_and_omega_s_fraction() {
     assert!(rec.entity("/metrics/hybrid/chi").is_some());
     // The mask's class ids agree with the logged Ω_s fraction, frame by frame.
     for (step, ids) in &scheme.classes {
-        let standard = ids.iter().filter(|&&c| c == STANDARD as u16).count();
+        let standard = ids.iter().filter(|&&c| c == SchemeClass::Standard.id()).count();
         let fraction = standard as f64 / ids.len() as f64;
         assert!((fraction - fractions[step]).abs() < 1e-12, "step {step}");
     }
@@ -581,7 +580,7 @@ fn corrosion_recording_holds_concentration_phase_and_scheme_masks() {
     let mut solid_before = usize::MAX;
     for step in frames {
         let (phase, scheme) = (&phase[&step], &scheme[&step]);
-        let solid = phase.iter().filter(|&&p| p == SOLID as u16).count();
+        let solid = phase.iter().filter(|&&p| p == Phase::Solid.id()).count();
         assert_eq!(solid as f64, solid_nodes[&step], "step {step}");
         assert!(solid <= solid_before, "the solid only shrinks");
         solid_before = solid;
@@ -590,9 +589,9 @@ fn corrosion_recording_holds_concentration_phase_and_scheme_masks() {
             phase
                 .iter()
                 .zip(scheme)
-                .all(|(&p, &m)| !(p == SOLID as u16 && m == WLS as u16))
+                .all(|(&p, &m)| !(p == Phase::Solid.id() && m == SchemeClass::Wls.id()))
         );
-        let standard = scheme.iter().filter(|&&m| m == STANDARD as u16).count();
+        let standard = scheme.iter().filter(|&&m| m == SchemeClass::Standard.id()).count();
         assert!((standard as f64 / scheme.len() as f64 - omega_s[&step]).abs() < 1e-12);
     }
     assert_eq!(loss[&0], 0.0);

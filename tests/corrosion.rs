@@ -2,7 +2,8 @@
 //! solid → liquid change below C_sat; `corrosion-1d`.
 
 use peridyn::scene::Scene;
-use peridyn::sim::{self, Stepper};
+use peridyn::sim;
+use peridyn::solver::Stepper;
 
 /// Steps a scene to its end, returning (time, mass Σ C V, volume loss, solid nodes) each step.
 fn history(variant: Option<&str>) -> Vec<(f64, f64, f64, f64)> {

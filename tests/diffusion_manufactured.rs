@@ -4,10 +4,11 @@
 
 use peridyn::report::{self, SweepSpec};
 use peridyn::runner::{self, NullSink};
-use peridyn::scalar::ScalarSimulation;
+use peridyn::sim::ScalarSimulation;
 use peridyn::scene::reference::{pd_of_quartic, quartic};
 use peridyn::scene::{Scene, SchemeKind};
-use peridyn::sim::{self, SimError};
+use peridyn::sim;
+use peridyn::solver::SimError;
 
 const PRESET: &str = "diffusion-2d-manufactured";
 

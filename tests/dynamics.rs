@@ -8,7 +8,8 @@ use std::sync::atomic::AtomicBool;
 use peridyn::frame::Frame;
 use peridyn::runner::{self, FrameSink};
 use peridyn::scene::Scene;
-use peridyn::sim::{self, SimError, Simulation, Stepper};
+use peridyn::sim::{self, DynamicSimulation};
+use peridyn::solver::{SimError, Stepper};
 
 #[derive(Default)]
 struct Collect(Vec<Frame>, Vec<String>);
@@ -39,8 +40,8 @@ fn free_plate_conserves_energy_and_momentum() {
     assert!((summary.info.dt / summary.info.stable_dt - 0.5).abs() < 1e-12);
     let e0 = sink.0[0].scalar("energy/total").unwrap();
     let mass_speed: f64 = {
-        let sim = Simulation::<2>::new(&scene).unwrap();
-        sim.velocities
+        let sim = DynamicSimulation::<2>::new(&scene).unwrap();
+        sim.velocities()
             .iter()
             .map(|v| (v[0] * v[0] + v[1] * v[1]).sqrt() * 2700.0 * 0.25e-6)
             .sum()
@@ -157,20 +158,20 @@ dt = "0.5 stable"
 end = "1 steps"
 "#,
     );
-    let mut sim = Simulation::<1>::new(&scene).unwrap();
-    assert_eq!(sim.families.bond_count(), 2);
-    sim.positions[1][0] = 1e-3 * (1.0 + 0.009);
+    let mut sim = DynamicSimulation::<1>::new(&scene).unwrap();
+    assert_eq!(sim.families().bond_count(), 2);
+    sim.positions_mut()[1][0] = 1e-3 * (1.0 + 0.009);
     sim.refresh_forces();
     assert!(sim.force_density()[0][0] > 0.0, "below s0 the bond pulls");
     assert_eq!(sim.broken_bonds(), 0);
-    sim.positions[1][0] = 1e-3 * (1.0 + 0.011);
+    sim.positions_mut()[1][0] = 1e-3 * (1.0 + 0.011);
     sim.refresh_forces();
     assert_eq!(sim.broken_bonds(), 2, "both directed bonds break");
     assert_eq!(sim.force_density()[0][0], 0.0);
-    sim.positions[1][0] = 1e-3;
+    sim.positions_mut()[1][0] = 1e-3;
     sim.refresh_forces();
     assert_eq!(sim.force_density()[0][0], 0.0, "no healing after unloading");
-    sim.positions[1][0] = 1e-3 * 0.9;
+    sim.positions_mut()[1][0] = 1e-3 * 0.9;
     sim.refresh_forces();
     assert_eq!(
         sim.force_density()[0][0],
@@ -186,16 +187,16 @@ end = "1 steps"
 #[test]
 fn damage_of_half_cut_family_is_one_half() {
     let scene = common::block(2, 20, 4.0, "strain", "");
-    let mut sim = Simulation::<2>::new(&scene).unwrap();
-    let c = (0..sim.lattice.len())
-        .find(|&i| sim.lattice.positions[i] == [10e-3, 10e-3])
+    let mut sim = DynamicSimulation::<2>::new(&scene).unwrap();
+    let c = (0..sim.reference().len())
+        .find(|&i| sim.reference()[i] == [10e-3, 10e-3])
         .unwrap();
-    let x = sim.lattice.positions[c];
+    let x = sim.reference()[c];
     let mut cut_weight = 0.0;
-    for b in sim.families.range(c) {
-        let j = sim.families.neighbors[b] as usize;
-        let dx = sim.lattice.positions[j][0] - x[0];
-        let dy = sim.lattice.positions[j][1] - x[1];
+    for b in sim.families().range(c) {
+        let j = sim.families().neighbors[b] as usize;
+        let dx = sim.reference()[j][0] - x[0];
+        let dy = sim.reference()[j][1] - x[1];
         // Upper half-plane, plus half of the horizontal axis.
         if dy > 0.0 || (dy == 0.0 && dx > 0.0) {
             sim.intact[b] = 0;
@@ -212,8 +213,8 @@ fn damage_of_half_cut_family_is_one_half() {
 #[test]
 fn incremental_damage_matches_a_pass_over_the_bonds() {
     let scene = Scene::load("kalthoff-winkler", Some("small")).unwrap();
-    let mut sim = Simulation::<2>::new(&scene).unwrap();
-    let check = |sim: &Simulation<2>| {
+    let mut sim = DynamicSimulation::<2>::new(&scene).unwrap();
+    let check = |sim: &DynamicSimulation<2>| {
         let (a, b) = (sim.damage(), sim.damage_from_bonds());
         let worst = a
             .iter()

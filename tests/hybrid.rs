@@ -1,10 +1,12 @@
 //! The hybrid configuration (thesis §3.3, seed-003 §5): one grid, Ω_s standard (PMB with
 //! failure) and Ω_w WLS-2 (linearized), Ω_s grown where bonds reach χ·s0.
 
-use peridyn::adapt::hybrid::{self, Hybrid};
+use peridyn::adapt::hybrid::Hybrid;
+use peridyn::adapt::masks::SchemeClass;
 use peridyn::runner::{self, NullSink};
 use peridyn::scene::Scene;
-use peridyn::sim::{Simulation, Stepper};
+use peridyn::sim::DynamicSimulation;
+use peridyn::solver::Stepper;
 
 fn load(preset: &str, variant: &str, set: &[&str]) -> Scene {
     let set: Vec<String> = set.iter().map(|s| s.to_string()).collect();
@@ -16,8 +18,8 @@ fn load(preset: &str, variant: &str, set: &[&str]) -> Scene {
 #[test]
 fn all_standard_hybrid_is_bit_identical_to_the_standard_scheme() {
     let common = ["time.dt=\"50 ns\"", "time.end=\"120 steps\""];
-    let mut standard = Simulation::<2>::new(&load("kalthoff-winkler", "small", &common)).unwrap();
-    let mut with_hybrid = Simulation::<2>::new(&load(
+    let mut standard = DynamicSimulation::<2>::new(&load("kalthoff-winkler", "small", &common)).unwrap();
+    let mut with_hybrid = DynamicSimulation::<2>::new(&load(
         "kalthoff-winkler",
         "small-hybrid",
         &[
@@ -38,8 +40,8 @@ fn all_standard_hybrid_is_bit_identical_to_the_standard_scheme() {
     }
     assert!(standard.broken_bonds() > 0, "cracks started");
     assert_eq!(standard.broken_bonds(), with_hybrid.broken_bonds());
-    assert_eq!(standard.positions, with_hybrid.positions, "bit for bit");
-    assert_eq!(standard.velocities, with_hybrid.velocities);
+    assert_eq!(standard.positions(), with_hybrid.positions(), "bit for bit");
+    assert_eq!(standard.velocities(), with_hybrid.velocities());
 }
 
 /// With Ω_w = everything and no failure, the hybrid code path is velocity-Verlet on the WLS
@@ -54,15 +56,15 @@ fn all_wls_hybrid_is_the_wls_scheme() {
             "time.dt=\"20 ns\"",
         ],
     );
-    let mut sim = Simulation::<2>::new(&scene).unwrap();
-    let n = sim.lattice.len();
-    let everything_wls = vec![hybrid::WLS; n];
+    let mut sim = DynamicSimulation::<2>::new(&scene).unwrap();
+    let n = sim.reference().len();
+    let everything_wls = vec![SchemeClass::Wls; n];
     let spec = scene.hybrid.unwrap();
     let h = Hybrid::new(
         spec,
         everything_wls,
-        &sim.lattice.positions,
-        &sim.families,
+        sim.reference(),
+        sim.families(),
         &sim.law,
         3,
     )
@@ -70,8 +72,8 @@ fn all_wls_hybrid_is_the_wls_scheme() {
     // The reference: the same operator, integrated here.
     let op = peridyn::scheme::wls::elasticity_operator(
         &(0..n as u32).collect::<Vec<_>>(),
-        &sim.lattice.positions,
-        &sim.families,
+        sim.reference(),
+        sim.families(),
         &peridyn::scheme::wls::Basis::new(2, 2),
         &peridyn::scheme::wls::bond_l(
             &peridyn::scheme::wls::Basis::new(2, 2),
@@ -86,10 +88,10 @@ fn all_wls_hybrid_is_the_wls_scheme() {
     sim.hybrid = Some(h);
     sim.refresh_forces();
     let rho = scene.material.as_ref().unwrap().density;
-    let dt = sim.dt;
-    let reference = sim.lattice.positions.clone();
-    let mut y = sim.positions.clone();
-    let mut v = sim.velocities.clone();
+    let dt = sim.clock().dt();
+    let reference = sim.reference().to_vec();
+    let mut y = sim.positions().to_vec();
+    let mut v = sim.velocities().to_vec();
     let accel = |y: &[[f64; 2]]| -> Vec<[f64; 2]> {
         let u: Vec<[f64; 2]> = y
             .iter()
@@ -124,10 +126,10 @@ fn all_wls_hybrid_is_the_wls_scheme() {
     for i in 0..n {
         for k in 0..2 {
             assert!(
-                (sim.velocities[i][k] - v[i][k]).abs() <= 1e-7 * scale,
+                (sim.velocities()[i][k] - v[i][k]).abs() <= 1e-7 * scale,
                 "node {i}"
             );
-            assert!((sim.positions[i][k] - y[i][k]).abs() <= 1e-12);
+            assert!((sim.positions()[i][k] - y[i][k]).abs() <= 1e-12);
         }
     }
     assert_eq!(sim.broken_bonds(), 0);
@@ -135,10 +137,10 @@ fn all_wls_hybrid_is_the_wls_scheme() {
 
 /// Runs a hybrid KW scene step by step, checking the invariant (no bond broken with an Ω_w
 /// end) after every step and that Ω_s only grows; returns (simulation, Ω_s fractions).
-fn run_checked(scene: &Scene) -> (Simulation<2>, Vec<f64>) {
-    let mut sim = Simulation::<2>::new(scene).unwrap();
+fn run_checked(scene: &Scene) -> (DynamicSimulation<2>, Vec<f64>) {
+    let mut sim = DynamicSimulation::<2>::new(scene).unwrap();
     let mut fractions = vec![sim.hybrid.as_ref().unwrap().standard_fraction()];
-    for _ in 0..sim.total_steps {
+    for _ in 0..sim.clock().total_steps() {
         sim.step().unwrap();
         assert_eq!(
             sim.enforce_hybrid_invariant(),
@@ -162,8 +164,8 @@ fn kalthoff_winkler_medium_hybrid_matches_the_standard_scheme() {
     let hybrid_scene = load("kalthoff-winkler", "medium-hybrid", &[]);
     let (mut h, fractions) = run_checked(&hybrid_scene);
     // The same grid and time step, all standard.
-    let dt = format!("time.dt={}", h.dt);
-    let mut s = Simulation::<2>::new(&load("kalthoff-winkler", "medium", &[&dt])).unwrap();
+    let dt = format!("time.dt={}", h.clock().dt());
+    let mut s = DynamicSimulation::<2>::new(&load("kalthoff-winkler", "medium", &[&dt])).unwrap();
     let stop = Default::default();
     runner::run(&mut s, &mut NullSink, &stop, None, &mut |_, _| {});
     assert_eq!(s.steps_done(), h.steps_done());
@@ -199,7 +201,7 @@ fn kalthoff_winkler_medium_hybrid_matches_the_standard_scheme() {
     assert!(
         dh.iter()
             .zip(&mask)
-            .all(|(d, &m)| m == hybrid::STANDARD || *d == 0.0)
+            .all(|(d, &m)| m == SchemeClass::Standard || *d == 0.0)
     );
     let _ = h.frame();
 
@@ -248,8 +250,8 @@ fn chi_controls_the_size_of_omega_s() {
     assert!(low > default && low > high, "lowering χ enlarges Ω_s");
 
     let scene = load("kalthoff-winkler", "small-hybrid", &[]);
-    let mut sim = Simulation::<2>::new(&scene).unwrap();
-    let half = sim.total_steps / 2;
+    let mut sim = DynamicSimulation::<2>::new(&scene).unwrap();
+    let half = sim.clock().total_steps() / 2;
     for _ in 0..half {
         sim.step().unwrap();
     }
@@ -286,7 +288,7 @@ fn near_check_policy_keeps_damage_in_omega_s() {
     assert!(sim.broken_bonds() > 0);
     assert!(fractions.last().unwrap() > &fractions[0]);
     let h = sim.hybrid.as_ref().unwrap();
-    let wls = h.mask().iter().filter(|&&m| m == hybrid::WLS).count();
+    let wls = h.mask().iter().filter(|&&m| m == SchemeClass::Wls).count();
     assert!(h.check_nodes().len() < wls);
 }
 
@@ -300,9 +302,9 @@ fn collocation_check_policy_repairs_damage_that_reached_omega_w() {
         "small-hybrid",
         &["hybrid.check=\"collocation\""],
     );
-    let mut sim = Simulation::<2>::new(&scene).unwrap();
+    let mut sim = DynamicSimulation::<2>::new(&scene).unwrap();
     let mut found = 0;
-    for _ in 0..sim.total_steps {
+    for _ in 0..sim.clock().total_steps() {
         sim.step().unwrap();
         found += sim.enforce_hybrid_invariant();
     }
@@ -335,10 +337,10 @@ fn motion_filtered_check_switches_exactly_like_the_exhaustive_check() {
             "small-hybrid",
             &[&format!("hybrid.check=\"{check}\"")],
         );
-        let mut filtered = Simulation::<2>::new(&scene).unwrap();
-        let mut exhaustive = Simulation::<2>::new(&scene).unwrap();
+        let mut filtered = DynamicSimulation::<2>::new(&scene).unwrap();
+        let mut exhaustive = DynamicSimulation::<2>::new(&scene).unwrap();
         exhaustive.hybrid.as_mut().unwrap().exhaustive = true;
-        for step in 0..filtered.total_steps {
+        for step in 0..filtered.clock().total_steps() {
             filtered.step().unwrap();
             exhaustive.step().unwrap();
             let (a, b) = (filtered.hybrid.as_ref(), exhaustive.hybrid.as_ref());

@@ -4,14 +4,14 @@
 mod common;
 
 use peridyn::model::pmb::poisson_ratio;
-use peridyn::scene::Plane;
-use peridyn::sim::Simulation;
+use peridyn::model::pmb::Plane;
+use peridyn::sim::DynamicSimulation;
 
 /// Index of the node nearest the centre of the block.
-fn centre<const D: usize>(sim: &Simulation<D>) -> usize {
-    let n = sim.lattice.len();
+fn centre<const D: usize>(sim: &DynamicSimulation<D>) -> usize {
+    let n = sim.reference().len();
     let mut c = [0.0; D];
-    for p in &sim.lattice.positions {
+    for p in sim.reference() {
         for k in 0..D {
             c[k] += p[k] / n as f64;
         }
@@ -20,7 +20,7 @@ fn centre<const D: usize>(sim: &Simulation<D>) -> usize {
         .min_by(|&a, &b| {
             let d = |i: usize| {
                 (0..D)
-                    .map(|k| (sim.lattice.positions[i][k] - c[k]).powi(2))
+                    .map(|k| (sim.reference()[i][k] - c[k]).powi(2))
                     .sum::<f64>()
             };
             d(a).total_cmp(&d(b))
@@ -29,26 +29,25 @@ fn centre<const D: usize>(sim: &Simulation<D>) -> usize {
 }
 
 /// Nodes at least `margin` away from every face.
-fn bulk<const D: usize>(sim: &Simulation<D>, margin: f64) -> Vec<usize> {
+fn bulk<const D: usize>(sim: &DynamicSimulation<D>, margin: f64) -> Vec<usize> {
     let (lo, hi) = sim.scene.solid.bounds();
-    (0..sim.lattice.len())
+    (0..sim.reference().len())
         .filter(|&i| {
             (0..D).all(|k| {
-                let x = sim.lattice.positions[i][k];
+                let x = sim.reference()[i][k];
                 x >= lo[k] + margin && x <= hi[k] - margin
             })
         })
         .collect()
 }
 
-fn deform<const D: usize>(sim: &mut Simulation<D>, map: impl Fn([f64; D]) -> [f64; D]) {
-    for i in 0..sim.lattice.len() {
-        sim.positions[i] = map(sim.lattice.positions[i]);
-    }
+fn deform<const D: usize>(sim: &mut DynamicSimulation<D>, map: impl Fn([f64; D]) -> [f64; D]) {
+    let mapped: Vec<[f64; D]> = sim.reference().iter().map(|&x| map(x)).collect();
+    sim.positions_mut().copy_from_slice(&mapped);
     sim.refresh_forces();
 }
 
-fn max_force<const D: usize>(sim: &Simulation<D>, nodes: impl Iterator<Item = usize>) -> f64 {
+fn max_force<const D: usize>(sim: &DynamicSimulation<D>, nodes: impl Iterator<Item = usize>) -> f64 {
     nodes
         .map(|i| {
             sim.force_density()[i]
@@ -91,7 +90,7 @@ fn homogeneous_strain_case<const D: usize>(
         plane,
         "family_radius = \"horizon-plus-half-spacing\"",
     );
-    let mut sim = Simulation::<D>::new(&scene).unwrap();
+    let mut sim = DynamicSimulation::<D>::new(&scene).unwrap();
     deform(&mut sim, |x| {
         let mut y = x;
         for a in 0..D {
@@ -104,11 +103,11 @@ fn homogeneous_strain_case<const D: usize>(
     let margin = scene.horizon + 0.5e-3 * 1.01;
     let inner = bulk(&sim, margin);
     assert!(!inner.is_empty());
-    let boundary_force = max_force(&sim, 0..sim.lattice.len());
+    let boundary_force = max_force(&sim, 0..sim.reference().len());
     let bulk_force = max_force(&sim, inner.iter().copied());
     let c = centre(&sim);
     let pd = sim.energy_density(c);
-    let plane = sim.scene.material.as_ref().unwrap().plane;
+    let plane = sim.scene.material.as_ref().unwrap().constants.plane;
     let classical = classical_energy::<D>(1e9, poisson_ratio(D, plane), plane, eps);
     (bulk_force / boundary_force, pd, classical)
 }
@@ -156,15 +155,15 @@ fn homogeneous_strain_3d() {
 #[test]
 fn rigid_motions_give_no_force() {
     let scene = common::block(2, 20, 4.0, "strain", "");
-    let mut sim = Simulation::<2>::new(&scene).unwrap();
+    let mut sim = DynamicSimulation::<2>::new(&scene).unwrap();
     // Reference force scale: a 1e-4 uniaxial stretch.
     deform(&mut sim, |x| [x[0] * (1.0 + 1e-4), x[1]]);
-    let scale = max_force(&sim, 0..sim.lattice.len());
+    let scale = max_force(&sim, 0..sim.reference().len());
     let (s, c) = 0.4f64.sin_cos();
     deform(&mut sim, |x| {
         [c * x[0] - s * x[1] + 0.3, s * x[0] + c * x[1] - 0.2]
     });
-    let rigid = max_force(&sim, 0..sim.lattice.len());
+    let rigid = max_force(&sim, 0..sim.reference().len());
     assert!(
         rigid < 1e-7 * scale,
         "rigid motion force {rigid:e} vs stretch force {scale:e}"
@@ -172,9 +171,9 @@ fn rigid_motions_give_no_force() {
     assert!(sim.strain_energy().abs() < 1e-20, "{}", sim.strain_energy());
 
     let scene = common::block(3, 8, 3.0, "strain", "");
-    let mut sim = Simulation::<3>::new(&scene).unwrap();
+    let mut sim = DynamicSimulation::<3>::new(&scene).unwrap();
     deform(&mut sim, |x| [x[0] * (1.0 + 1e-4), x[1], x[2]]);
-    let scale = max_force(&sim, 0..sim.lattice.len());
+    let scale = max_force(&sim, 0..sim.reference().len());
     // Rotation about the axis (1, 1, 1)/√3 by 0.5 rad, plus a translation.
     let (s, c) = 0.5f64.sin_cos();
     let k = [1.0 / 3f64.sqrt(); 3];
@@ -191,7 +190,7 @@ fn rigid_motions_give_no_force() {
         }
         y
     });
-    let rigid = max_force(&sim, 0..sim.lattice.len());
+    let rigid = max_force(&sim, 0..sim.reference().len());
     assert!(
         rigid < 1e-7 * scale,
         "3D rigid motion force {rigid:e} vs {scale:e}"

@@ -7,7 +7,7 @@ use egui_kittest::kittest::Queryable;
 use peridyn::control::state::Discretization;
 use peridyn::control::{Command, ControlState, DtValue};
 use peridyn::panel::view::{self, PanelInputs};
-use peridyn::sim::SimInfo;
+use peridyn::solver::SimInfo;
 
 /// What the harness holds: the state the panel shows (commands applied to it as the
 /// simulation thread would) and every command the panel emitted.
@@ -36,6 +36,7 @@ fn model() -> Model {
                 dx: 1e-3,
                 scheme: "standard".into(),
             },
+            peridyn::scene::DEFAULT_CHI,
         ),
         inputs: PanelInputs::default(),
         emitted: Vec::new(),
@@ -43,6 +44,10 @@ fn model() -> Model {
 }
 
 fn harness() -> Harness<'static, Model> {
+    harness_of(model())
+}
+
+fn harness_of(model: Model) -> Harness<'static, Model> {
     Harness::builder()
         .with_size(egui::vec2(460.0, 760.0))
         .build_ui_state(
@@ -52,7 +57,7 @@ fn harness() -> Harness<'static, Model> {
                     let _ = m.state.apply(command);
                 }
             },
-            model(),
+            model,
         )
 }
 
@@ -249,4 +254,35 @@ fn picking_a_preset_and_variant_emits_load() {
             variant: Some("small".into())
         }]
     );
+}
+
+/// The panel opens on the preset's χ, not a default of its own: the state the simulation
+/// thread publishes comes from the scene.
+#[test]
+fn the_panel_starts_at_the_presets_chi() {
+    use egui_kittest::kittest::NodeT;
+    let scene = peridyn::scene::Scene::load_with(
+        "kalthoff-winkler",
+        Some("small-hybrid"),
+        &["hybrid.chi=0.9".into()],
+    )
+    .unwrap();
+    let file = std::env::temp_dir().join(format!("peridyn-panel-chi-{}.rrd", std::process::id()));
+    let outlet = peridyn::record::Outlet::open(&peridyn::record::RecordTarget::File(file.clone()))
+        .unwrap();
+    let spec = peridyn::control::runspec::RunSpec::new(&scene, None, Some(1));
+    let driver = peridyn::control::Driver::start(spec, outlet, "chi").unwrap();
+    assert_eq!(driver.state.chi, 0.9);
+    let mut h = harness_of(Model {
+        state: driver.state.clone(),
+        inputs: PanelInputs::default(),
+        emitted: Vec::new(),
+    });
+    h.run();
+    assert_eq!(h.state().inputs.chi, 0.9);
+    let shown = h.get_by_label("χ").accesskit_node().numeric_value();
+    assert_eq!(shown, Some(0.9), "the χ slider shows the preset's value");
+    assert!(h.state().emitted.is_empty(), "showing it gives no command");
+    driver.finish(false, None).unwrap();
+    let _ = std::fs::remove_file(file);
 }

@@ -4,10 +4,11 @@
 
 use nalgebra::DVector;
 
-use peridyn::family::Families;
-use peridyn::grid::{Lattice, SplitMix64};
+use peridyn::discretization::Families;
+use peridyn::discretization::grid::{Lattice, SplitMix64};
 use peridyn::model::pmb::micromodulus;
-use peridyn::scene::{Influence, Plane, Solid};
+use peridyn::model::pmb::{Influence, Plane};
+use peridyn::scene::Solid;
 use peridyn::scheme::wls::{self, Basis};
 
 /// A random quadratic vector field: coefficients [component][monomial of 1, x, y, z, x², …].

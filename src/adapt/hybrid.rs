@@ -12,26 +12,14 @@
 
 use rayon::prelude::*;
 
+use super::masks::SchemeClass;
 use super::motion::MotionBound;
-use crate::family::{self, Families};
+use crate::discretization::family::{self, Families};
 use crate::model::pmb::PmbLaw;
 use crate::scene::{CheckSet, CrackGeometry, HybridSpec, Solid};
 use crate::scheme::VectorOperator;
 use crate::scheme::runs::RowRuns;
 use crate::scheme::wls::{self, Basis, FitError};
-
-/// Mask values. HELD marks Dirichlet nodes of scalar scenes, which neither scheme evaluates.
-pub const STANDARD: u8 = 0;
-pub const WLS: u8 = 1;
-pub const HELD: u8 = 2;
-
-/// Class ids, names and colours of the `nodes/scheme` field (dynamic scenes use the first
-/// two: they hold no layers).
-pub const SCHEME_CLASSES: &[(u16, &str, [u8; 3])] = &[
-    (STANDARD as u16, "standard", [230, 85, 13]),
-    (WLS as u16, "WLS", [49, 130, 189]),
-    (HELD as u16, "held", [120, 120, 120]),
-];
 
 /// A switching event: at `step` (time `time`), `nodes` nodes moved to Ω_s.
 #[derive(Debug, Clone, PartialEq)]
@@ -43,10 +31,24 @@ pub struct SwitchEvent {
     pub forced: bool,
 }
 
+impl std::fmt::Display for SwitchEvent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (t, step, n) = (self.time, self.step, self.nodes);
+        if self.forced {
+            write!(
+                f,
+                "t = {t:.4e} s (step {step}): damage reached Ω_w; {n} nodes switched to the standard scheme"
+            )
+        } else {
+            write!(f, "t = {t:.4e} s (step {step}): {n} nodes switched to the standard scheme")
+        }
+    }
+}
+
 pub struct Hybrid<const D: usize> {
     pub spec: HybridSpec,
-    /// 1 for Ω_w (WLS), 0 for Ω_s (standard), per node.
-    mask: Vec<u8>,
+    /// Ω_s (standard) or Ω_w (WLS), per node.
+    mask: Vec<SchemeClass>,
     /// Rows: the initial Ω_w nodes; a row is skipped once its node switched.
     wls: VectorOperator<D>,
     /// Node → its row in `wls` (u32::MAX for nodes that started in Ω_s).
@@ -96,7 +98,7 @@ pub fn initial_mask<const D: usize>(
     precracks: &[CrackGeometry],
     band: f64,
     spacing: f64,
-) -> Vec<u8> {
+) -> Vec<SchemeClass> {
     let directions: Vec<[f64; D]> = (1..3usize.pow(D as u32))
         .filter_map(|code| {
             let mut d = [0.0; D];
@@ -123,9 +125,9 @@ pub fn initial_mask<const D: usize>(
                 })
             });
             if near_crack || near_boundary {
-                STANDARD
+                SchemeClass::Standard
             } else {
-                WLS
+                SchemeClass::Wls
             }
         })
         .collect()
@@ -135,14 +137,14 @@ impl<const D: usize> Hybrid<D> {
     /// Builds the mask and the WLS-2 blocks of the Ω_w nodes (k_aux: auxiliary grid δ/k_aux).
     pub fn new(
         spec: HybridSpec,
-        mask: Vec<u8>,
+        mask: Vec<SchemeClass>,
         reference: &[[f64; D]],
         families: &Families,
         law: &PmbLaw,
         k_aux: usize,
     ) -> Result<Self, FitError> {
         let rows: Vec<u32> = (0..mask.len() as u32)
-            .filter(|&i| mask[i as usize] == WLS)
+            .filter(|&i| mask[i as usize] == SchemeClass::Wls)
             .collect();
         let basis = Basis::new(D, 2);
         // (3.54)–(3.56): the linearized bond-based operator over the full ball.
@@ -192,7 +194,7 @@ impl<const D: usize> Hybrid<D> {
         Ok(hybrid)
     }
 
-    pub fn mask(&self) -> &[u8] {
+    pub fn mask(&self) -> &[SchemeClass] {
         &self.mask
     }
 
@@ -217,12 +219,8 @@ impl<const D: usize> Hybrid<D> {
 
     /// Changes χ in place (live control).
     pub fn set_chi(&mut self, chi: f64) -> Result<(), String> {
-        if chi > 0.0 && chi <= 1.0 {
-            self.spec.chi = chi;
-            Ok(())
-        } else {
-            Err(format!("χ must be in (0, 1], got {chi}"))
-        }
+        self.spec.chi = crate::scene::check_chi(chi)?;
+        Ok(())
     }
 
     /// Switching events since the last call.
@@ -275,7 +273,7 @@ impl<const D: usize> Hybrid<D> {
     /// Whether Ω_w node `i` (in the check set) has a critical bond, r² ≥ f l², among those it
     /// checks (f l² − r² has the sign of the exact difference, so "least ≤ 0" is that test).
     fn node_critical(&self, i: usize, bonds: &BondView<D>, factor: f64) -> bool {
-        self.mask[i] == WLS
+        self.mask[i] == SchemeClass::Wls
             && self.node_least(i, bonds, move |r2, l2| critical_margin(factor, r2, l2)) <= 0.0
     }
 
@@ -312,7 +310,7 @@ impl<const D: usize> Hybrid<D> {
                 .enumerate()
                 .with_min_len(1024)
                 .for_each(|(i, s)| {
-                    *s = if this.in_check[i] && this.mask[i] == WLS {
+                    *s = if this.in_check[i] && this.mask[i] == SchemeClass::Wls {
                         this.node_least(i, &bonds, |r2, l2| sqrt_f * l2.sqrt() - r2.sqrt())
                     } else {
                         f64::INFINITY
@@ -348,7 +346,7 @@ impl<const D: usize> Hybrid<D> {
             // and checks them exactly; the critical nodes are listed (allocated) only when there
             // are some. Too many flagged nodes: the next check starts an epoch (this one is
             // exact either way).
-            let in_check_wls = |k: usize| this.in_check[k] && this.mask[k] == WLS;
+            let in_check_wls = |k: usize| this.in_check[k] && this.mask[k] == SchemeClass::Wls;
             let (flagged, (counted, any)) = motion.fold_flagged(
                 in_check_wls,
                 |i| (this.bond_count(i, families), node_critical(&(i as u32))),
@@ -382,7 +380,7 @@ impl<const D: usize> Hybrid<D> {
         let mask = &self.mask;
         self.check_nodes = match self.spec.check {
             CheckSet::All => (0..mask.len() as u32)
-                .filter(|&i| mask[i as usize] == WLS)
+                .filter(|&i| mask[i as usize] == SchemeClass::Wls)
                 .collect(),
             CheckSet::Near | CheckSet::Collocation => {
                 // Ω_w nodes with an Ω_s node within one family hop, then within two.
@@ -391,14 +389,14 @@ impl<const D: usize> Hybrid<D> {
                         .range(i)
                         .any(|b| flag[families.neighbors[b] as usize])
                 };
-                let standard: Vec<bool> = mask.iter().map(|&m| m == STANDARD).collect();
+                let standard: Vec<bool> = mask.iter().map(|&m| m == SchemeClass::Standard).collect();
                 let ring1: Vec<bool> = (0..mask.len())
                     .into_par_iter()
-                    .map(|i| mask[i] == WLS && touches(i, &standard))
+                    .map(|i| mask[i] == SchemeClass::Wls && touches(i, &standard))
                     .collect();
                 let near: Vec<bool> = (0..mask.len())
                     .into_par_iter()
-                    .map(|i| mask[i] == WLS && (ring1[i] || touches(i, &ring1)))
+                    .map(|i| mask[i] == SchemeClass::Wls && (ring1[i] || touches(i, &ring1)))
                     .collect();
                 (0..mask.len() as u32)
                     .filter(|&i| near[i as usize])
@@ -429,8 +427,8 @@ impl<const D: usize> Hybrid<D> {
             let neighborhood =
                 std::iter::once(i).chain(families.range(i).map(|b| families.neighbors[b] as usize));
             for k in neighborhood {
-                if self.mask[k] == WLS {
-                    self.mask[k] = STANDARD;
+                if self.mask[k] == SchemeClass::Wls {
+                    self.mask[k] = SchemeClass::Standard;
                     switched.push(k as u32);
                 }
             }
@@ -452,7 +450,7 @@ impl<const D: usize> Hybrid<D> {
                     let two_hops = std::iter::once(j)
                         .chain(families.range(j).map(|b2| families.neighbors[b2] as usize));
                     for c in two_hops {
-                        if mask[c] == WLS && !self.in_check[c] {
+                        if mask[c] == SchemeClass::Wls && !self.in_check[c] {
                             self.in_check[c] = true;
                             self.check_nodes.push(c as u32);
                             added.push(c);
@@ -525,7 +523,7 @@ impl<const D: usize> Hybrid<D> {
         };
         let has_critical = |&i: &u32| {
             let i = i as usize;
-            mask[i] == WLS && columns(i).iter().any(|&j| bond_critical(i, j as usize))
+            mask[i] == SchemeClass::Wls && columns(i).iter().any(|&j| bond_critical(i, j as usize))
         };
         let critical_nodes: Vec<u32> = if collocation {
             // The common case finds nothing: `any` allocates nothing; the nodes are listed
@@ -588,11 +586,11 @@ impl<const D: usize> Hybrid<D> {
         let mask = &self.mask;
         let reached: Vec<u32> = (0..mask.len())
             .into_par_iter()
-            .filter(|&j| mask[j] == STANDARD)
+            .filter(|&j| mask[j] == SchemeClass::Standard)
             .flat_map_iter(|j| {
                 families
                     .range(j)
-                    .filter(|&b| intact[b] == 0 && mask[families.neighbors[b] as usize] == WLS)
+                    .filter(|&b| intact[b] == 0 && mask[families.neighbors[b] as usize] == SchemeClass::Wls)
                     .map(|b| families.neighbors[b])
             })
             .collect();
@@ -618,7 +616,7 @@ impl<const D: usize> Hybrid<D> {
             .rows
             .par_iter()
             .enumerate()
-            .map(|(r, &i)| (mask[i as usize] == WLS).then(|| op.apply_row(r, u)))
+            .map(|(r, &i)| (mask[i as usize] == SchemeClass::Wls).then(|| op.apply_row(r, u)))
             .collect();
         for (&i, force) in op.rows.iter().zip(rows) {
             if let Some(force) = force {
@@ -641,7 +639,7 @@ impl<const D: usize> Hybrid<D> {
         self.runs.apply(
             op,
             u,
-            |r| mask[op.rows[r] as usize] == WLS,
+            |r| mask[op.rows[r] as usize] == SchemeClass::Wls,
             &mut self.wls_force,
         );
     }
@@ -649,7 +647,7 @@ impl<const D: usize> Hybrid<D> {
     /// Node i's WLS force from the last [`Self::wls_forces`], if it is in Ω_w.
     #[inline]
     pub fn wls_force_of(&self, i: usize) -> Option<[f64; D]> {
-        (self.mask[i] == WLS).then(|| self.wls_force[self.row_of[i] as usize])
+        (self.mask[i] == SchemeClass::Wls).then(|| self.wls_force[self.row_of[i] as usize])
     }
 }
 

@@ -1,4 +1,9 @@
-//! Adaptive configurations that change which scheme (or grid) updates each node.
+//! Adaptations that run between steps and change which scheme (or phase) each node has: the
+//! adaptive hybrid's switching (`hybrid`, filtered by `motion`), the fixed hybrid of corrosion
+//! scenes (`fixed`), the phase change (`phase`), and the typed masks they keep (`masks`).
 
+pub mod fixed;
 pub mod hybrid;
+pub mod masks;
 pub mod motion;
+pub mod phase;

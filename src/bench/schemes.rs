@@ -7,12 +7,14 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use crate::family::Families;
-use crate::grid::Lattice;
+use crate::discretization::family::Families;
+use crate::discretization::grid::Lattice;
 use crate::model::diffusion::DiffusionKernel;
 use crate::model::pmb::{PmbLaw, micromodulus};
-use crate::scene::{Influence, Plane, Solid};
-use crate::scheme::standard::{self, NodeTerms, Quadrature, Standard};
+use crate::model::pmb::{Influence, Plane};
+use crate::scene::Solid;
+use crate::discretization::Quadrature;
+use crate::scheme::standard::{self, NodeTerms, Standard};
 use crate::scheme::wls::{self, Basis};
 
 /// Seconds per call of `f`, repeated for at least `budget` seconds (and 3 calls).

@@ -7,7 +7,6 @@
 use std::time::Instant;
 
 use super::command::Command;
-use super::live::{self, Live};
 use super::rescene;
 use super::runspec::{self, RunSpec};
 use super::script::Timed;
@@ -16,7 +15,8 @@ use crate::frame::Frame;
 use crate::record::{Outlet, RerunSink};
 use crate::runner::{FrameSink, RunSummary};
 use crate::scene::Scene;
-use crate::sim::SimError;
+use crate::sim;
+use crate::solver::{SimError, Stepper};
 
 pub struct Driver {
     pub state: ControlState,
@@ -24,7 +24,7 @@ pub struct Driver {
     /// The scene as given, before any command.
     base: Scene,
     outlet: Outlet,
-    sim: Box<dyn Live>,
+    sim: Box<dyn Stepper>,
     sink: Option<RerunSink>,
     /// Single steps still to take before pausing again.
     pending: u64,
@@ -40,9 +40,8 @@ impl Driver {
     /// Builds the first run. Errors are bad input (the preset or the discretization).
     pub fn start(spec: RunSpec, outlet: Outlet, session: &str) -> Result<Driver, String> {
         let base = spec.scene().map_err(|e| e.to_string())?;
-        let sim = live::build(&base).map_err(|e| e.to_string())?;
-        let info = sim.info();
-        let state = ControlState::new(session, &info, rescene::discretization_of(&base));
+        let sim = sim::build(&base).map_err(|e| e.to_string())?;
+        let state = ControlState::for_scene(session, &sim.info(), &base);
         let mut driver = Driver {
             state,
             spec,
@@ -82,6 +81,11 @@ impl Driver {
     pub fn total_steps(&self) -> u64 {
         let total = self.sim.info().total_steps;
         self.spec.steps.map_or(total, |cap| cap.min(total))
+    }
+
+    /// The current run's facts (size, Δt, its bound).
+    pub fn info(&self) -> crate::solver::SimInfo {
+        self.sim.info()
     }
 
     pub fn steps_done(&self) -> u64 {
@@ -167,7 +171,14 @@ impl Driver {
             None
         };
         let result = match effect {
-            Effect::Recorded | Effect::Play | Effect::Pause => Ok(()),
+            Effect::Play | Effect::Pause => Ok(()),
+            Effect::Tune(param) => {
+                // Where the scene has no use for it, the parameter is only recorded.
+                if let Err(note) = self.sim.tune(param) {
+                    self.message("info", &note);
+                }
+                Ok(())
+            }
             Effect::Step(n) => {
                 self.pending = n;
                 Ok(())
@@ -184,12 +195,6 @@ impl Driver {
             Effect::Load { preset, variant } => self.load(&preset, variant.as_deref()),
             Effect::Rebuild => self.rebuild(&before),
         };
-        // χ acts on a hybrid scheme in place; elsewhere it is only recorded.
-        if let Some(Command::SetChi(chi)) = applied.as_ref().map(|a| &a.command)
-            && let Err(note) = self.sim.set_chi(*chi)
-        {
-            self.message("info", &note);
-        }
         if let Err(e) = result {
             let msg = format!("refused: {e}");
             self.state.revert(before, &msg);
@@ -225,17 +230,14 @@ impl Driver {
         let scene = Scene::load(preset, variant).map_err(|e| e.to_string())?;
         let spec = RunSpec::new(&scene, self.spec.every, self.spec.steps);
         let scene = spec.scene().map_err(|e| e.to_string())?;
-        let sim = live::build(&scene).map_err(|e| e.to_string())?;
+        let sim = sim::build(&scene).map_err(|e| e.to_string())?;
         if let Some(sink) = self.sink.take() {
             sink.finish()?;
         }
         let saving = self.state.saving.clone();
         let running = self.state.running;
-        self.state = ControlState::new(
-            crate::record::recording_id(&scene),
-            &sim.info(),
-            rescene::discretization_of(&scene),
-        );
+        self.state =
+            ControlState::for_scene(crate::record::recording_id(&scene), &sim.info(), &scene);
         self.state.saving = saving;
         self.state.running = running;
         self.sim = sim;
@@ -249,7 +251,7 @@ impl Driver {
     fn rebuild(&mut self, before: &ControlState) -> Result<(), String> {
         let scene = rescene::with_discretization(&self.base, &self.state.discretization)
             .map_err(|e| e.to_string())?;
-        let sim = live::build(&scene).map_err(|e| e.to_string())?;
+        let sim = sim::build(&scene).map_err(|e| e.to_string())?;
         // Close the current run: its last state as a frame, the command that ended it.
         let step = self.sim.steps_done();
         if !step.is_multiple_of(before.every) && step != self.total_steps() {
@@ -283,7 +285,7 @@ impl Driver {
         let wall = self.started.elapsed().as_secs_f64();
         let last_frame = self.last_frame.take();
         Ok(RunSummary::of(
-            self.sim.as_stepper(),
+            self.sim.as_ref(),
             self.frames,
             wall,
             self.frame_seconds,

@@ -1,13 +1,12 @@
 //! Live control: the commands a user gives a running simulation (`command`), the panel's
 //! plain-data state that validates them (`state`), timed scripts for headless runs
-//! (`script`), a simulation whose Δt can change while it runs (`live`), scenes rebuilt with a
+//! (`script`), scenes rebuilt with a
 //! new discretization (`rescene`), the run description stored in recordings (`runspec`) and
 //! the driver applying it all to a running simulation (`driver`). Nothing here knows egui;
 //! the solver core knows nothing of this module.
 
 pub mod command;
 pub mod driver;
-pub mod live;
 pub mod rescene;
 pub mod runspec;
 pub mod script;

@@ -6,14 +6,16 @@ use std::path::{Path, PathBuf};
 
 use super::command::{Command, DtValue};
 use crate::frame::Frame;
+use crate::scene::Scene;
 use crate::scene::schema::SchemeKind;
-use crate::sim::SimInfo;
+use crate::solver::{Param, SimInfo};
 
 /// What the driver must do after a command was accepted.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Effect {
-    /// Only the state changed (e.g. χ, which the standard scheme records but does not use).
-    Recorded,
+    /// Tune the running simulation in place (where the scene has no use for the parameter,
+    /// it is only recorded).
+    Tune(Param),
     Play,
     Pause,
     /// Advance this many steps, then pause.
@@ -92,20 +94,29 @@ pub struct ControlState {
     pub log: Vec<Applied>,
 }
 
-/// χ when nothing set it (the thesis's default switching margin).
-pub const DEFAULT_CHI: f64 = 0.95;
-
 /// Damage at which a node counts as cracked.
 pub const CRACK_DAMAGE: f64 = 0.35;
 
 impl ControlState {
+    /// The state of a freshly built run of `scene`: its discretization and χ (the preset's, or
+    /// the default where it has none); `session` prefixes every recording id.
+    pub fn for_scene(session: impl Into<String>, info: &SimInfo, scene: &Scene) -> Self {
+        let chi = scene.hybrid.map_or(crate::scene::DEFAULT_CHI, |h| h.chi);
+        ControlState::new(session, info, super::rescene::discretization_of(scene), chi)
+    }
+
     /// The state of a freshly built run; `session` prefixes every recording id.
-    pub fn new(session: impl Into<String>, info: &SimInfo, discretization: Discretization) -> Self {
+    pub fn new(
+        session: impl Into<String>,
+        info: &SimInfo,
+        discretization: Discretization,
+        chi: f64,
+    ) -> Self {
         ControlState {
             session: session.into(),
             run: 1,
             running: true,
-            chi: DEFAULT_CHI,
+            chi,
             dt: info.dt,
             stable_dt: info.stable_dt,
             discretization,
@@ -224,10 +235,8 @@ impl ControlState {
             }
             Command::Reset => Effect::Rebuild,
             Command::SetChi(chi) => {
-                if !(chi.is_finite() && *chi > 0.0 && *chi <= 1.0) {
-                    return Err(format!("χ = {chi} is outside (0, 1]"));
-                }
-                Effect::Recorded
+                crate::scene::check_chi(*chi)?;
+                Effect::Tune(Param::Chi(*chi))
             }
             Command::SetDt {
                 value,
@@ -373,6 +382,7 @@ mod tests {
                 dx: 1e-3,
                 scheme: "standard".into(),
             },
+            crate::scene::DEFAULT_CHI,
         )
     }
 
@@ -411,7 +421,7 @@ mod tests {
         );
         assert_eq!(
             only_changes(Command::SetChi(0.8), |s| s.chi = 0.8),
-            Effect::Recorded
+            Effect::Tune(Param::Chi(0.8))
         );
         assert_eq!(
             only_changes(

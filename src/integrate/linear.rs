@@ -131,7 +131,7 @@ impl BandMatrix {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::SplitMix64;
+    use crate::discretization::grid::SplitMix64;
 
     /// A random non-symmetric banded system that needs pivoting (zero diagonal entries),
     /// checked against its residual.

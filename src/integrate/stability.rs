@@ -7,7 +7,7 @@
 //! estimated with a power iteration on the operator itself, which also serves operators that
 //! are not symmetric (the WLS scheme, note §2.2).
 
-use crate::grid::SplitMix64;
+use crate::discretization::grid::SplitMix64;
 
 /// Largest eigenvalue of a linear operator on `n` vectors of `D` components that is
 /// self-adjoint and positive semi-definite in the inner product weighted by `weights`
@@ -72,6 +72,20 @@ pub fn spectral_radius(
         std::mem::swap(&mut v, &mut w);
     }
     radius
+}
+
+/// The margin kept on an eigenvalue or spectral radius found by power iteration (which
+/// approaches it from below).
+pub const SPECTRAL_MARGIN: f64 = 1.02;
+
+/// Velocity-Verlet's stable step from a power-iterated λ_max, with the margin.
+pub fn verlet_step(lambda_max: f64) -> f64 {
+    verlet_limit(lambda_max * SPECTRAL_MARGIN)
+}
+
+/// Forward Euler's stable step from a power-iterated spectral radius, with the margin.
+pub fn euler_step(radius: f64) -> f64 {
+    euler_limit(radius * SPECTRAL_MARGIN)
 }
 
 /// Forward Euler's limit 2/ρ for an operator whose eigenvalues are real and ≤ 0 with

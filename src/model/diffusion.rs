@@ -1,8 +1,6 @@
 //! Peridynamic diffusion kernel κ ω(‖ξ‖) / ‖ξ‖^q (thesis (2.41)–(2.43), (3.4)).
 
-use crate::scene::Influence;
-
-use super::pmb::influence;
+use super::pmb::{Influence, influence};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DiffusionKernel {

@@ -4,9 +4,60 @@
 //! prints plane stress only ((2.31), (2.35)); the plane-strain, 3D and 1D rows are the note's
 //! [derived] rows (errata item 13: KW is plane strain, so both are exposed).
 
-use crate::scene::{Influence, Plane};
-
 use std::f64::consts::PI;
+
+use serde::Deserialize;
+
+/// Influence function ω of a bond, (2.12)–(2.13).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Influence {
+    /// ω0 = 1 (2.12).
+    #[default]
+    Constant,
+    /// ω1 = 1 − r/δ (2.13).
+    Linear,
+}
+
+/// The 2D reduction of a 3D body.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Plane {
+    /// Plane stress, ν = 1/3.
+    Stress,
+    /// Plane strain, ν = 1/4.
+    #[default]
+    Strain,
+}
+
+/// The bond stiffness as a preset gives it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Stiffness {
+    /// Young's modulus E: the micromodulus follows from the tables of §1.3.
+    YoungsModulus(f64),
+    /// The micromodulus c itself.
+    Micromodulus(f64),
+}
+
+/// Bond failure as a preset gives it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Failure {
+    /// No bond breaks.
+    None,
+    /// Fracture energy G0: the critical stretch follows from (2.35) and §1.3.
+    FractureEnergy(f64),
+    /// The critical stretch s0 itself.
+    CriticalStretch(f64),
+}
+
+/// The constants of a PMB material, as given (nothing derived yet).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PmbConstants {
+    pub stiffness: Stiffness,
+    pub failure: Failure,
+    pub influence: Influence,
+    pub plane: Plane,
+}
 
 /// Micromodulus c from Young's modulus, (2.31) and the derived rows of §1.3.
 pub fn micromodulus(e: f64, horizon: f64, dim: usize, plane: Plane, influence: Influence) -> f64 {
@@ -113,6 +164,29 @@ pub struct PmbLaw {
 }
 
 impl PmbLaw {
+    /// The law of a material with horizon δ in `dim` dimensions: c from E by (2.31) and the
+    /// rows of §1.3 (or as given), s0 from G0 by (2.35) (or as given), +∞ without failure.
+    pub fn new(constants: &PmbConstants, horizon: f64, dim: usize) -> PmbLaw {
+        let c = constants;
+        let micromodulus = match c.stiffness {
+            Stiffness::Micromodulus(m) => m,
+            Stiffness::YoungsModulus(e) => micromodulus(e, horizon, dim, c.plane, c.influence),
+        };
+        let critical_stretch = match c.failure {
+            Failure::None => f64::INFINITY,
+            Failure::CriticalStretch(s0) => s0,
+            Failure::FractureEnergy(g0) => {
+                critical_stretch(g0, micromodulus, horizon, dim, c.influence)
+            }
+        };
+        PmbLaw {
+            micromodulus,
+            critical_stretch,
+            influence: c.influence,
+            horizon,
+        }
+    }
+
     /// Pairwise energy density w = ω c s² ‖ξ‖ / 2 (2.27).
     #[inline(always)]
     pub fn bond_energy(&self, stretch: f64, length: f64) -> f64 {

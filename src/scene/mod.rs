@@ -13,7 +13,9 @@ use std::path::Path;
 pub use error::SceneError;
 pub use geometry::Solid;
 pub use reference::Reference;
-pub use schema::{CheckSet, FamilyRadius, Influence, Physics, Plane, Preset, SchemeKind};
+pub use schema::{CheckSet, FamilyRadius, Physics, Preset, SchemeKind};
+
+use crate::model::pmb::{Influence, PmbConstants};
 
 use error::{ErrorContext, line_of};
 
@@ -60,12 +62,9 @@ pub struct Scene {
 #[derive(Debug, Clone, PartialEq)]
 pub struct MaterialSpec {
     pub density: f64,
-    pub micromodulus: f64,
-    /// None: no failure.
-    pub critical_stretch: Option<f64>,
-    pub influence: Influence,
-    pub plane: Plane,
-    pub youngs_modulus: Option<f64>,
+    /// Stiffness, failure, influence and plane as given: the law (`model::pmb::PmbLaw`)
+    /// derives c and s0 from them.
+    pub constants: PmbConstants,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -84,6 +83,19 @@ pub struct CorrosionSpec {
     pub interface_diffusivity: f64,
     /// C_sat.
     pub saturation: f64,
+}
+
+/// χ where a preset does not set it (the thesis's switching margin, §8.3).
+pub const DEFAULT_CHI: f64 = 0.95;
+
+/// The one check of the switching margin χ of (3.80), wherever it is set (preset, command,
+/// running simulation): it must lie in (0, 1].
+pub fn check_chi(chi: f64) -> Result<f64, String> {
+    if chi.is_finite() && chi > 0.0 && chi <= 1.0 {
+        Ok(chi)
+    } else {
+        Err(format!("χ must be in (0, 1], got {chi}"))
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -4,18 +4,20 @@
 use std::f64::consts::PI;
 
 use super::schema::{ReferenceOperator, ReferenceSpec};
-use super::{DiffusionSpec, Influence, MaterialSpec, Physics};
+use super::{DiffusionSpec, MaterialSpec, Physics};
+use crate::model::diffusion::DiffusionKernel;
+use crate::model::pmb::Influence;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Reference {
-    /// 1D static elasticity, u = sin(x / length); 0 = L[u] + b.
+    /// 1D static elasticity, u = sin(x / length); 0 = L[u] + b, L the nonlocal operator or
+    /// its local limit.
     Sine1d {
         length: f64,
-        /// b / sin(x / length).
-        body_force_factor: f64,
+        operator: ReferenceOperator,
     },
     /// 2D diffusion, C = sin(ω t) P(x, y) with the quartic P of (3.77); Ċ = L[C] + S.
-    Quartic2d { frequency: f64, diffusivity: f64 },
+    Quartic2d { frequency: f64 },
 }
 
 impl Reference {
@@ -23,7 +25,6 @@ impl Reference {
         spec: &ReferenceSpec,
         dim: usize,
         physics: Physics,
-        horizon: f64,
         material: Option<&MaterialSpec>,
         diffusion: Option<&DiffusionSpec>,
     ) -> Result<Reference, String> {
@@ -38,24 +39,13 @@ impl Reference {
                 if length.is_nan() || length <= 0.0 {
                     return Err(format!("reference.length: must be > 0, got {length}"));
                 }
-                if m.influence != Influence::Constant {
+                if m.constants.influence != Influence::Constant {
                     return Err(
                         "material.influence: \"sine-1d\" is derived for ω = 1 (\"constant\")"
                             .into(),
                     );
                 }
-                let c = m.micromodulus;
-                let body_force_factor = match operator {
-                    // ∫_{-δ}^{δ} c/|ξ| (sin((x+ξ)/ℓ) − sin(x/ℓ)) dξ = −2c Cin(δ/ℓ) sin(x/ℓ), (3.74)
-                    // with γ (erratum 4: not e): Cin(a) = γ − Ci(a) + ln a.
-                    ReferenceOperator::Nonlocal => 2.0 * c * cin(horizon / length),
-                    // Local limit (3.76): 0 = E u'' + b, E = c δ²/2 in 1D.
-                    ReferenceOperator::Local => c * horizon * horizon / 2.0 / (length * length),
-                };
-                Ok(Reference::Sine1d {
-                    length,
-                    body_force_factor,
-                })
+                Ok(Reference::Sine1d { length, operator })
             }
             ReferenceSpec::Quartic2d { frequency } => {
                 let (Some(d), 2, Physics::Diffusion) = (diffusion, dim, physics) else {
@@ -77,10 +67,7 @@ impl Reference {
                         "reference.frequency: must be finite, got {frequency}"
                     ));
                 }
-                Ok(Reference::Quartic2d {
-                    frequency,
-                    diffusivity: d.diffusivity,
-                })
+                Ok(Reference::Quartic2d { frequency })
             }
         }
     }
@@ -93,20 +80,27 @@ impl Reference {
         }
     }
 
-    /// The body force b (static) or source S (diffusion) at `x`, time `t`.
-    pub fn forcing(&self, x: &[f64], t: f64, horizon: f64) -> f64 {
+    /// The body force b (static) or source S (diffusion) at `x`, time `t`, for the scalar
+    /// operator of `kernel` (its coefficient is c for 1D static elasticity, κ for diffusion).
+    pub fn forcing(&self, x: &[f64], t: f64, kernel: &DiffusionKernel) -> f64 {
+        let (coefficient, horizon) = (kernel.diffusivity, kernel.horizon);
         match *self {
-            Reference::Sine1d {
-                length,
-                body_force_factor,
-            } => body_force_factor * (x[0] / length).sin(),
+            Reference::Sine1d { length, operator } => {
+                let c = coefficient;
+                // b / sin(x / ℓ):
+                let factor = match operator {
+                    // ∫_{-δ}^{δ} c/|ξ| (sin((x+ξ)/ℓ) − sin(x/ℓ)) dξ = −2c Cin(δ/ℓ) sin(x/ℓ),
+                    // (3.74) with γ (erratum 4: not e): Cin(a) = γ − Ci(a) + ln a.
+                    ReferenceOperator::Nonlocal => 2.0 * c * cin(horizon / length),
+                    // Local limit (3.76): 0 = E u'' + b, E = c δ²/2 in 1D.
+                    ReferenceOperator::Local => c * horizon * horizon / 2.0 / (length * length),
+                };
+                factor * (x[0] / length).sin()
+            }
             // (3.78): S = ω cos(ω t) P − sin(ω t) L[P].
-            Reference::Quartic2d {
-                frequency,
-                diffusivity,
-            } => {
+            Reference::Quartic2d { frequency } => {
                 frequency * (frequency * t).cos() * quartic(x)
-                    - (frequency * t).sin() * diffusivity * pd_of_quartic(x, horizon)
+                    - (frequency * t).sin() * coefficient * pd_of_quartic(x, horizon)
             }
         }
     }

@@ -7,6 +7,7 @@ use serde::Deserialize;
 
 use super::geometry::{Point, Shape};
 use super::units::{Measure, Quantity};
+use crate::model::pmb::{Influence, Plane};
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -108,7 +109,7 @@ fn default_band() -> Measure {
 }
 
 fn default_chi() -> f64 {
-    0.95
+    super::DEFAULT_CHI
 }
 
 fn default_every() -> u64 {
@@ -276,26 +277,6 @@ pub enum ModelKind {
     /// Prototype microelastic brittle bond-based material (GPBM), (2.27)–(2.34).
     #[default]
     Pmb,
-}
-
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Influence {
-    /// ω0 = 1 (2.12).
-    #[default]
-    Constant,
-    /// ω1 = 1 − r/δ (2.13).
-    Linear,
-}
-
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Plane {
-    /// Plane stress, ν = 1/3.
-    Stress,
-    /// Plane strain, ν = 1/4.
-    #[default]
-    Strain,
 }
 
 #[derive(Debug, Clone, Deserialize)]

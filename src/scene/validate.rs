@@ -8,7 +8,7 @@ use super::schema::{
 };
 use super::units::{Measure, Relative};
 use super::*;
-use crate::model::pmb;
+use crate::model::pmb::{Failure, PmbConstants, Stiffness};
 
 /// Directed bonds a scene may have (≈ 13 bytes each: 16 GB).
 const MAX_BONDS: f64 = 1.2e9;
@@ -121,7 +121,7 @@ pub(super) fn validate(
                 format!("\"static\" is available in 1D; this scene is {dim}D"),
             ));
         }
-        _ => (Some(material(p, ctx, dim, horizon, physics)?), None),
+        _ => (Some(material(p, ctx, physics)?), None),
     };
     if physics != Physics::Dynamics && !p.precracks.is_empty() {
         return Err(ctx.error("precracks", "pre-cracks need physics = \"dynamics\""));
@@ -179,7 +179,6 @@ pub(super) fn validate(
                 r,
                 dim,
                 physics,
-                horizon,
                 material.as_ref(),
                 diffusion.as_ref(),
             )
@@ -306,13 +305,7 @@ fn positive(ctx: &ErrorContext, field: &str, v: f64) -> Result<f64, SceneError> 
     }
 }
 
-fn material(
-    p: &Preset,
-    ctx: &ErrorContext,
-    dim: usize,
-    horizon: f64,
-    physics: Physics,
-) -> Result<MaterialSpec, SceneError> {
+fn material(p: &Preset, ctx: &ErrorContext, physics: Physics) -> Result<MaterialSpec, SceneError> {
     let m = &p.material;
     let density = match (m.density, physics) {
         (Some(rho), _) => positive(ctx, "material.density", rho.si())?,
@@ -321,13 +314,11 @@ fn material(
         }
         (None, _) => 1.0,
     };
-    let youngs_modulus = m
-        .youngs_modulus
-        .map(|e| positive(ctx, "material.youngs_modulus", e.si()))
-        .transpose()?;
-    let micromodulus = match (m.micromodulus, youngs_modulus) {
-        (Some(c), _) => positive(ctx, "material.micromodulus", c.si())?,
-        (None, Some(e)) => pmb::micromodulus(e, horizon, dim, m.plane, m.influence),
+    let stiffness = match (m.micromodulus, m.youngs_modulus) {
+        (Some(c), _) => Stiffness::Micromodulus(positive(ctx, "material.micromodulus", c.si())?),
+        (None, Some(e)) => {
+            Stiffness::YoungsModulus(positive(ctx, "material.youngs_modulus", e.si())?)
+        }
         (None, None) => {
             return Err(ctx.error(
                 "material.youngs_modulus",
@@ -335,27 +326,21 @@ fn material(
             ));
         }
     };
-    let critical_stretch = match (m.critical_stretch, m.fracture_energy) {
-        (Some(s0), _) => Some(positive(ctx, "material.critical_stretch", s0)?),
+    let failure = match (m.critical_stretch, m.fracture_energy) {
+        (Some(s0), _) => Failure::CriticalStretch(positive(ctx, "material.critical_stretch", s0)?),
         (None, Some(g0)) => {
-            let g0 = positive(ctx, "material.fracture_energy", g0.si())?;
-            Some(pmb::critical_stretch(
-                g0,
-                micromodulus,
-                horizon,
-                dim,
-                m.influence,
-            ))
+            Failure::FractureEnergy(positive(ctx, "material.fracture_energy", g0.si())?)
         }
-        (None, None) => None,
+        (None, None) => Failure::None,
     };
     Ok(MaterialSpec {
         density,
-        micromodulus,
-        critical_stretch,
-        influence: m.influence,
-        plane: m.plane,
-        youngs_modulus,
+        constants: PmbConstants {
+            stiffness,
+            failure,
+            influence: m.influence,
+            plane: m.plane,
+        },
     })
 }
 
@@ -498,9 +483,7 @@ fn hybrid(
             ),
         ));
     }
-    if !(h.chi > 0.0 && h.chi <= 1.0) {
-        return Err(ctx.error("hybrid.chi", format!("χ must be in (0, 1], got {}", h.chi)));
-    }
+    let chi = check_chi(h.chi).map_err(|m| ctx.error("hybrid.chi", m))?;
     if h.check_every == 0 {
         return Err(ctx.error("hybrid.check_every", "must be ≥ 1 (steps between checks)"));
     }
@@ -515,7 +498,7 @@ fn hybrid(
     Ok(Some(HybridSpec {
         adaptive: kind == SchemeKind::HybridAdaptive,
         band,
-        chi: h.chi,
+        chi,
         check: h.check,
         check_every: h.check_every,
     }))

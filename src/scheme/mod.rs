@@ -6,6 +6,20 @@ pub mod runs;
 pub mod standard;
 pub mod wls;
 
+/// A per-node flag of the standard bond loop: rows whose entry is `skipped` are left to
+/// another scheme (the hybrid's Ω_w).
+pub trait RowMask: Copy + Send + Sync {
+    fn skipped(self) -> bool;
+}
+
+/// 0: evaluate the row; anything else: skip it.
+impl RowMask for u8 {
+    #[inline(always)]
+    fn skipped(self) -> bool {
+        self != 0
+    }
+}
+
 /// A linear operator on a scalar node field, stored as sparse rows: for each node of `rows`,
 /// out_i = Σ_j w_ij values_j over its `columns`. Both schemes assemble their diffusion
 /// operators into this form, so integrators and stability estimates serve either.
@@ -44,6 +58,43 @@ impl ScalarOperator {
                 .iter()
                 .zip(&self.weights[range])
                 .map(|(&j, w)| w * values[j as usize])
+                .sum();
+        });
+    }
+
+    /// max_r Σ_j |w_rj|: every eigenvalue lies in a Gershgorin disc of at most this radius.
+    pub fn max_absolute_row_sum(&self) -> f64 {
+        (0..self.rows.len())
+            .into_par_iter()
+            .map(|r| {
+                self.weights[self.offsets[r]..self.offsets[r + 1]]
+                    .iter()
+                    .map(|w| w.abs())
+                    .sum::<f64>()
+            })
+            .reduce(|| 0.0, f64::max)
+    }
+
+    /// out[r] = Σ_{j ≠ i} κ(i, j) w_rj (values[j] − values[i]) for row r of node i: the bond
+    /// sum of a diffusion operator assembled with κ = 1 (its first entry per row is the node
+    /// itself, (3.4)) whose bonds carry their own diffusivity (corrosion's bond classes).
+    pub fn apply_rows_bond_weighted(
+        &self,
+        values: &[f64],
+        out: &mut [f64],
+        kappa: impl Fn(usize, usize) -> f64 + Sync,
+    ) {
+        out.par_iter_mut().enumerate().for_each(|(r, o)| {
+            let i = self.rows[r] as usize;
+            let c_i = values[i];
+            let range = self.offsets[r] + 1..self.offsets[r + 1];
+            *o = self.columns[range.clone()]
+                .iter()
+                .zip(&self.weights[range])
+                .map(|(&j, w)| {
+                    let j = j as usize;
+                    kappa(i, j) * w * (values[j] - c_i)
+                })
                 .sum();
         });
     }

@@ -399,8 +399,8 @@ unsafe fn chunk_product_avx512<const D: usize, const P: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::family::Families;
-    use crate::grid::Lattice;
+    use crate::discretization::family::Families;
+    use crate::discretization::grid::Lattice;
     use crate::scene::Solid;
     use crate::scheme::wls;
 

@@ -6,31 +6,11 @@
 
 use rayon::prelude::*;
 
-use crate::family::{Families, partial_volume};
+use crate::discretization::{Families, NodeValue, Quadrature};
 use crate::model::diffusion::DiffusionKernel;
 use crate::model::pmb::{PmbLaw, influence};
-use crate::scene::Influence;
-use crate::scheme::ScalarOperator;
-
-/// Quadrature data shared by every bond: β on/off, spacing, horizon.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Quadrature {
-    pub spacing: f64,
-    pub horizon: f64,
-    pub volume_correction: bool,
-}
-
-impl Quadrature {
-    /// β(‖ξ‖) of (3.2), or 1 when the correction is off.
-    #[inline(always)]
-    pub fn beta(&self, length: f64) -> f64 {
-        if self.volume_correction {
-            partial_volume(length, self.horizon, self.spacing)
-        } else {
-            1.0
-        }
-    }
-}
+use crate::model::pmb::Influence;
+use crate::scheme::{RowMask, ScalarOperator};
 
 /// What the force loop produces per node.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -42,6 +22,14 @@ pub struct NodeTerms<const D: usize> {
     /// Σ β V'_j over the node's broken bonds, V' = 1 where all volumes are equal (the damage
     /// numerator, kept up to date as bonds break).
     pub broken_weight: f64,
+}
+
+impl<const D: usize> NodeValue for NodeTerms<D> {
+    const EMPTY: Self = NodeTerms {
+        force: [0.0; D],
+        energy_density: 0.0,
+        broken_weight: 0.0,
+    };
 }
 
 impl<const D: usize> Default for NodeTerms<D> {
@@ -107,17 +95,17 @@ impl<const D: usize> Standard<'_, D> {
         intact: &mut [u8],
         terms: &mut [NodeTerms<D>],
     ) -> u64 {
-        self.forces_masked(positions, intact, terms, None)
+        self.forces_masked::<u8>(positions, intact, terms, None)
     }
 
-    /// As `forces`, skipping the rows whose `skip` flag is non-zero (the hybrid scheme's Ω_w
+    /// As `forces`, skipping the rows whose mask entry is `skipped` (the hybrid scheme's Ω_w
     /// nodes, §5): their terms are left as they are and their bonds are never evaluated.
-    pub fn forces_masked(
+    pub fn forces_masked<M: RowMask>(
         &self,
         positions: &[[f64; D]],
         intact: &mut [u8],
         terms: &mut [NodeTerms<D>],
-        skip: Option<&[u8]>,
+        skip: Option<&[M]>,
     ) -> u64 {
         let (families, law, quadrature) = (self.families, self.law, self.quadrature);
         assert_eq!(positions.len(), families.node_count());
@@ -329,8 +317,8 @@ const ROWS_PER_TASK: usize = 512;
 /// (3.1). Node ranges are split recursively (no allocation) so each task owns its rows of the
 /// node terms and of the bond states.
 #[inline(always)]
-fn pmb_rows<const D: usize>(
-    rows: &Rows<D>,
+fn pmb_rows<const D: usize, M: RowMask>(
+    rows: &Rows<D, M>,
     intact: &mut [u8],
     terms: &mut [NodeTerms<D>],
     weight: impl Fn(f64) -> f64 + Sync,
@@ -352,18 +340,18 @@ fn pmb_rows<const D: usize>(
 
 /// A block of consecutive rows of the force loop.
 #[derive(Clone, Copy)]
-struct Rows<'a, const D: usize> {
+struct Rows<'a, const D: usize, M> {
     positions: &'a [[f64; D]],
     families: &'a Families,
     quadrature: &'a Quadrature,
     first: usize,
     s0: f64,
-    skip: Option<&'a [u8]>,
+    skip: Option<&'a [M]>,
 }
 
 #[inline(always)]
-fn rows_portable<const D: usize>(
-    rows: &Rows<D>,
+fn rows_portable<const D: usize, M: RowMask>(
+    rows: &Rows<D, M>,
     terms: &mut [NodeTerms<D>],
     state: &mut [u8],
     weight: &impl Fn(f64) -> f64,
@@ -374,7 +362,7 @@ fn rows_portable<const D: usize>(
     let mut broken = 0u64;
     for (row, t_i) in terms.iter_mut().enumerate() {
         let i = rows.first + row;
-        if rows.skip.is_some_and(|mask| mask[i] != 0) {
+        if rows.skip.is_some_and(|mask| mask[i].skipped()) {
             continue;
         }
         let range = families.range(i);
@@ -401,8 +389,8 @@ fn rows_portable<const D: usize>(
 /// so the results are bit-identical to the portable code.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx,avx2")]
-fn rows_avx2<const D: usize>(
-    rows: &Rows<D>,
+fn rows_avx2<const D: usize, M: RowMask>(
+    rows: &Rows<D, M>,
     terms: &mut [NodeTerms<D>],
     state: &mut [u8],
     weight: &impl Fn(f64) -> f64,
@@ -551,7 +539,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::Lattice;
+    use crate::discretization::grid::Lattice;
     use crate::scene::Solid;
 
     /// The AVX2 build of the force loop, the portable one and any thread count give the same
@@ -616,7 +604,7 @@ mod tests {
             quadrature: &quadrature,
             first: 0,
             s0: law.critical_stretch,
-            skip: None,
+            skip: None::<&[u8]>,
         };
         let weight = |l: f64| quadrature.beta(l);
         let volume = |_j: usize| 1.0;

@@ -7,8 +7,8 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::family::Families;
-use crate::scene::Influence;
+use crate::discretization::family::Families;
+use crate::model::pmb::Influence;
 use crate::scheme::{Row, ScalarOperator, VectorOperator};
 
 /// Monomials ξ^α of total degree ≤ `order` in `dim` dimensions, ordered by degree and, within
@@ -665,7 +665,7 @@ pub fn lps_dilatation_force_l(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::{Lattice, SplitMix64};
+    use crate::discretization::grid::{Lattice, SplitMix64};
     use crate::scene::Solid;
 
     fn centre_node<const D: usize>(lattice: &Lattice<D>, at: f64) -> usize {
@@ -951,7 +951,7 @@ mod tests {
     #[test]
     fn bond_based_wls_is_navier_on_quadratics() {
         use crate::model::pmb::micromodulus;
-        use crate::scene::Plane;
+        use crate::model::pmb::Plane;
         let (lattice, families, c) = setup::<2>(6, 0.2);
         let horizon = 6.0;
         let basis = Basis::new(2, 2);

@@ -9,20 +9,67 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
-use crate::adapt::hybrid::{HELD, STANDARD, WLS};
-use crate::family::Families;
+use super::masks::{Phase, SchemeClass};
+use crate::discretization::Families;
 use crate::model::diffusion::DiffusionKernel;
 use crate::scheme::VectorOperator;
+use crate::scheme::runs::RowRuns;
 use crate::scheme::wls::{self, Basis, FitError};
 
+/// The fixed hybrid of a scalar scene: the per-node scheme mask and Ω_w's WLS rows (in
+/// stencil form, evaluated over translation runs) with their rates; the scene's own operator
+/// then holds the Ω_s rows only.
+pub struct FixedHybrid {
+    pub mask: Vec<SchemeClass>,
+    pub wls: VectorOperator<1>,
+    runs: RowRuns,
+    /// L C on each Ω_w row, then (forward Euler) the row's new value.
+    pub rate: Vec<f64>,
+}
+
+impl FixedHybrid {
+    /// WLS-2 diffusion with the liquid's `kernel` on the Ω_w nodes of `mask`.
+    pub fn new<const D: usize>(
+        mask: Vec<SchemeClass>,
+        positions: &[[f64; D]],
+        families: &Families,
+        kernel: &DiffusionKernel,
+        k_aux: usize,
+    ) -> Result<FixedHybrid, FitError> {
+        let wls = liquid_operator(&mask, positions, families, kernel, k_aux)?;
+        Ok(FixedHybrid {
+            mask,
+            runs: RowRuns::new(&wls),
+            rate: vec![0.0; wls.rows.len()],
+            wls,
+        })
+    }
+
+    /// L C on the Ω_w rows into `rate`.
+    pub fn rates(&mut self, field: &[f64]) {
+        let (rates, _) = self.rate.as_chunks_mut::<1>();
+        self.runs.apply(&self.wls, [field], |_| true, rates);
+    }
+
+    /// Solid nodes in Ω_w: a phase change where the WLS rows cannot see one. Counted in every
+    /// frame, never expected (see the module notes).
+    pub fn violations(&self, phase: &[Phase]) -> usize {
+        self.mask
+            .iter()
+            .zip(phase)
+            .filter(|(m, p)| **m == SchemeClass::Wls && p.is_solid())
+            .count()
+    }
+}
+
 /// Ω_s of the fixed corrosion hybrid: nodes within `band` of an initially solid node; held
-/// nodes are marked [`HELD`], all others Ω_w.
+/// nodes are marked [`SchemeClass::Held`], all others Ω_w.
 pub fn corrosion_mask<const D: usize>(
     positions: &[[f64; D]],
     solid: &[bool],
     held: &[bool],
     band: f64,
-) -> Vec<u8> {
+) -> Vec<SchemeClass> {
     let solid_positions: Vec<[f64; D]> = positions
         .iter()
         .zip(solid)
@@ -50,9 +97,9 @@ pub fn corrosion_mask<const D: usize>(
         .iter()
         .zip(held)
         .map(|(&near, &h)| match (h, near) {
-            (true, _) => HELD,
-            (false, true) => STANDARD,
-            (false, false) => WLS,
+            (true, _) => SchemeClass::Held,
+            (false, true) => SchemeClass::Standard,
+            (false, false) => SchemeClass::Wls,
         })
         .collect()
 }
@@ -60,14 +107,14 @@ pub fn corrosion_mask<const D: usize>(
 /// The WLS-2 diffusion operator with κ_liq on the Ω_w rows, in stencil form (translated rows
 /// share weights and are evaluated in runs).
 pub fn liquid_operator<const D: usize>(
-    mask: &[u8],
+    mask: &[SchemeClass],
     positions: &[[f64; D]],
     families: &Families,
     kernel: &DiffusionKernel,
     k_aux: usize,
 ) -> Result<VectorOperator<1>, FitError> {
     let rows: Vec<u32> = (0..mask.len() as u32)
-        .filter(|&i| mask[i as usize] == WLS)
+        .filter(|&i| mask[i as usize] == SchemeClass::Wls)
         .collect();
     let basis = Basis::new(D, 2);
     let l = wls::diffusion_l(
@@ -86,9 +133,4 @@ pub fn liquid_operator<const D: usize>(
         kernel.horizon,
         k_aux,
     )
-}
-
-/// Fraction of nodes in Ω_s.
-pub fn standard_fraction(mask: &[u8]) -> f64 {
-    mask.iter().filter(|&&m| m == STANDARD).count() as f64 / mask.len().max(1) as f64
 }

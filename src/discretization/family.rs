@@ -233,7 +233,7 @@ fn segment_crosses_patch(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::Lattice;
+    use crate::discretization::grid::Lattice;
     use crate::scene::Solid;
 
     fn family_size_with_self<const D: usize>(m: usize) -> usize {

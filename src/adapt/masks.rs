@@ -1,0 +1,101 @@
+//! Typed per-node masks, each with its one annotation table (class id, name, colour) for
+//! recordings: the scheme region of a hybrid and the phase of a corrosion scene.
+
+use crate::discretization::NodeValue;
+use crate::frame::ClassField;
+use crate::scheme::RowMask;
+
+/// One class of a mask as recorded: id, name, colour.
+pub type Class = (u16, &'static str, [u8; 3]);
+
+/// Which scheme evaluates a node (thesis §3.3): Ω_s, Ω_w, or neither (a held Dirichlet node
+/// of a scalar scene).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum SchemeClass {
+    /// Ω_s: the standard scheme.
+    #[default]
+    Standard = 0,
+    /// Ω_w: WLS collocation.
+    Wls = 1,
+    /// Held at a prescribed value (scalar scenes' Dirichlet layers).
+    Held = 2,
+}
+
+impl SchemeClass {
+    /// The `nodes/scheme` classes.
+    pub const TABLE: &'static [Class] = &[
+        (SchemeClass::Standard as u16, "standard", [230, 85, 13]),
+        (SchemeClass::Wls as u16, "WLS", [49, 130, 189]),
+        (SchemeClass::Held as u16, "held", [120, 120, 120]),
+    ];
+
+    pub fn id(self) -> u16 {
+        self as u16
+    }
+
+    /// The mask as a recorded class field; `held`: the scene has held nodes (scalar scenes),
+    /// else only the two schemes are annotated.
+    pub fn field(mask: &[SchemeClass], held: bool) -> ClassField {
+        ClassField {
+            name: "scheme",
+            ids: mask.iter().map(|m| m.id()).collect(),
+            classes: if held { Self::TABLE } else { &Self::TABLE[..2] },
+        }
+    }
+
+    /// Fraction of the nodes in Ω_s.
+    pub fn standard_fraction(mask: &[SchemeClass]) -> f64 {
+        let standard = mask.iter().filter(|&&m| m == SchemeClass::Standard).count();
+        standard as f64 / mask.len().max(1) as f64
+    }
+}
+
+impl NodeValue for SchemeClass {
+    const EMPTY: Self = SchemeClass::Standard;
+}
+
+/// The standard bond loop evaluates Ω_s rows only.
+impl RowMask for SchemeClass {
+    #[inline(always)]
+    fn skipped(self) -> bool {
+        self != SchemeClass::Standard
+    }
+}
+
+/// The phase of a node of a corrosion scene (thesis (2.79)).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum Phase {
+    #[default]
+    Liquid = 0,
+    Solid = 1,
+}
+
+impl Phase {
+    /// The `nodes/phase` classes.
+    pub const TABLE: &'static [Class] = &[
+        (Phase::Liquid as u16, "liquid", [107, 174, 214]),
+        (Phase::Solid as u16, "solid", [150, 150, 150]),
+    ];
+
+    pub fn id(self) -> u16 {
+        self as u16
+    }
+
+    pub fn is_solid(self) -> bool {
+        self == Phase::Solid
+    }
+
+    pub fn field(phase: &[Phase]) -> ClassField {
+        ClassField {
+            name: "phase",
+            ids: phase.iter().map(|p| p.id()).collect(),
+            classes: Self::TABLE,
+        }
+    }
+}
+
+impl NodeValue for Phase {
+    const EMPTY: Self = Phase::Liquid;
+}

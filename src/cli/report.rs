@@ -1,0 +1,133 @@
+//! What the commands print: one line on a built scene, and a run's summary.
+
+use crate::control::driver::field_hash;
+use crate::runner::RunSummary;
+use crate::scene::{Physics, Scene};
+use crate::solver::SimInfo;
+
+/// A ratio to a bound, readable from 10⁻⁶ to 10.
+fn ratio(r: f64) -> String {
+    if r >= 0.01 {
+        format!("{r:.3}")
+    } else {
+        format!("{r:.2e}")
+    }
+}
+
+/// One line on a built scene: size, scheme, time step against its bound, steps.
+pub fn describe(scene: &Scene, info: &SimInfo, steps: Option<u64>) -> String {
+    let name = match &scene.variant {
+        Some(v) => format!("{} [{v}]", scene.name),
+        None => scene.name.clone(),
+    };
+    let steps = steps.unwrap_or(info.total_steps).min(info.total_steps);
+    let stencil = format!(
+        "{} scheme, {:.1} nodes per stencil",
+        scene.scheme.kind.name(),
+        info.stencil
+    );
+    match scene.physics {
+        Physics::Static => format!(
+            "{name}: {}D static, {} nodes, {stencil}, {} operator entries, one global solve",
+            info.dim, info.nodes, info.bonds
+        ),
+        Physics::Diffusion | Physics::Corrosion => format!(
+            "{name}: {}D {}, {} nodes, {stencil}, Δt = {:.4e} s ({} × forward Euler's \
+             bound {:.4e} s from {}), {steps} steps, a frame every {}",
+            info.dim,
+            if scene.physics == Physics::Corrosion {
+                "corrosion"
+            } else {
+                "diffusion"
+            },
+            info.nodes,
+            info.dt,
+            ratio(info.dt / info.stable_dt),
+            info.stable_dt,
+            if info.stable_dt == info.gershgorin_dt {
+                "Gershgorin discs; the step is below it, no power iteration needed"
+            } else {
+                "the operator's spectral radius"
+            },
+            info.frame_every
+        ),
+        Physics::Dynamics => format!(
+            "{name}: {}D, {} nodes, {} directed bonds, Δt = {:.4e} s ({:.2}× the stable bound \
+             {:.4e} s; (3.8) estimate {:.4e} s), {steps} steps, a frame every {}",
+            info.dim,
+            info.nodes,
+            info.bonds,
+            info.dt,
+            info.dt / info.stable_dt,
+            info.stable_dt,
+            info.gershgorin_dt,
+            info.frame_every
+        ),
+    }
+}
+
+/// A run's summary: speed, stages, error or volume loss or broken bonds, energies, crack
+/// angles, and the final time with a hash of every field of the last frame (equal hashes:
+/// equal fields, bit for bit).
+pub fn print_summary(s: &RunSummary) {
+    println!(
+        "steps: {}  frames: {}  wall: {:.2} s  steps/s: {:.1}  bond evaluations/s: {:.3e}  frame share: {:.1} %",
+        s.steps,
+        s.frames,
+        s.wall_seconds,
+        s.steps_per_second(),
+        s.bond_evaluations_per_second(),
+        100.0 * s.frame_seconds / s.wall_seconds.max(1e-12)
+    );
+    let stages: Vec<String> = s
+        .stages
+        .iter()
+        .filter(|(_, t)| *t > 0.0)
+        .map(|(n, t)| format!("{n} {t:.2} s"))
+        .collect();
+    println!("stages: {}", stages.join(", "));
+    let last = |key: &str| s.last_frame.as_ref().and_then(|f| f.scalar(key));
+    if let Some(e) = s.relative_error {
+        println!("relative l2 error (3.79): {e:.6e}");
+    } else if let Some(loss) = last("corrosion/volume_loss") {
+        println!(
+            "relative volume loss: {loss:.4}  solid nodes: {}  mass Σ C V: {:.10e}",
+            last("corrosion/solid_nodes").unwrap_or(0.0),
+            last("field/integral").unwrap_or(0.0)
+        );
+    } else {
+        println!("broken bonds: {}", s.broken_bonds);
+    }
+    if let Some(f) = &s.last_frame {
+        for key in ["energy/kinetic", "energy/strain", "energy/total"] {
+            if let Some(v) = f.scalar(key) {
+                println!("{key}: {v:.6e} J");
+            }
+        }
+        let hash = |values: &[f64]| field_hash(values.iter().map(|v| v.to_bits()));
+        if let Some(d) = f.fields.iter().find(|f| f.name == "damage") {
+            println!("final damage hash: {:016x}", hash(&d.values));
+        }
+        let mut hashes = vec![format!("positions {:016x}", hash(&f.positions))];
+        hashes.extend(
+            f.fields
+                .iter()
+                .map(|n| format!("{} {:016x}", n.name, hash(&n.values))),
+        );
+        hashes.extend(f.classes.iter().map(|c| {
+            let ids = field_hash(c.ids.iter().map(|&v| v as u64));
+            format!("{} {ids:016x}", c.name)
+        }));
+        println!(
+            "final time: {:e} s  field hashes: {}",
+            f.time,
+            hashes.join(", ")
+        );
+    }
+    for (name, angle) in &s.crack_angles {
+        match angle {
+            Some(a) => println!("crack angle {name}: {a:.1}°"),
+            None => println!("crack angle {name}: no crack found"),
+        }
+    }
+}

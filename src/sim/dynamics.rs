@@ -1,0 +1,728 @@
+//! Elastodynamics with bond failure: velocity-Verlet (thesis (3.5)–(3.6)) over the standard
+//! bond sums (3.1) with the PMB law (2.33)–(2.34), optionally the hybrid configuration (§3.3)
+//! switching nodes from WLS to the standard scheme between steps. Runs `step()` as named,
+//! timed stages and emits plain-data `Frame`s; it knows nothing of viewers or user interfaces.
+
+use rayon::prelude::*;
+
+use crate::adapt::hybrid::{self, Hybrid};
+use crate::adapt::masks::SchemeClass;
+use crate::discretization::{Discretization, Families, Field, Nodes, Quadrature};
+use crate::frame::{ClassField, Frame, NodeField};
+use crate::integrate::{self, stability, verlet};
+use crate::metrics;
+use crate::model::pmb::PmbLaw;
+use crate::scene::{Condition, InitialVelocity, Scene, SceneError};
+use crate::scheme::standard::{NodeTerms, Standard};
+use crate::solver::{
+    self, Clock, Integrator, Lap, Param, SimError, SimInfo, StableStep, Stages, StepWall,
+    Stepper,
+};
+
+/// Velocity-Verlet's stages, in the order `step()` runs them.
+const STAGES: &[&str] = &["kick_drift", "switching", "forces", "kick", "constraints"];
+const KICK_DRIFT: usize = 0;
+const SWITCHING: usize = 1;
+const FORCES: usize = 2;
+const KICK: usize = 3;
+const CONSTRAINTS: usize = 4;
+
+/// Power iterations for the stable-step estimate.
+const POWER_ITERATIONS: usize = 60;
+/// Power iterations for the (non-symmetric) hybrid operator's spectral radius.
+const HYBRID_ITERATIONS: usize = 200;
+
+/// A prescribed node component: node, axis, value.
+type Held = (u32, u8, f64);
+
+/// The per-node columns of a dynamic simulation.
+#[derive(Debug, Clone, Copy)]
+struct Columns<const D: usize> {
+    /// Current positions y = x + u.
+    position: Field<[f64; D]>,
+    velocity: Field<[f64; D]>,
+    acceleration: Field<[f64; D]>,
+    /// What the force loop produces per node (force, energy density, broken weight).
+    terms: Field<NodeTerms<D>>,
+    /// Σ β V'_j over each node's family: the damage denominator (see `damage_weights`).
+    family_weight: Field<f64>,
+    /// Only where a `body_force` layer exists.
+    body_force: Option<Field<[f64; D]>>,
+}
+
+pub struct DynamicSimulation<const D: usize> {
+    pub scene: Scene,
+    pub discretization: Discretization<D>,
+    columns: Columns<D>,
+    pub intact: Vec<u8>,
+    held_velocity: Vec<Held>,
+    held_displacement: Vec<Held>,
+    pub law: PmbLaw,
+    density: f64,
+    stable: StableStep,
+    clock: Clock,
+    frame_every: u64,
+    broken: u64,
+    stages: Stages,
+    velocity_scale: f64,
+    step_wall: StepWall,
+    /// Hybrid schemes: the Ω_s/Ω_w mask, the WLS blocks and the switching state.
+    pub hybrid: Option<Hybrid<D>>,
+    /// Bonds found broken with an Ω_w end (the hybrid invariant; 0 when it holds).
+    pub hybrid_violations: u64,
+}
+
+/// The standard scheme over one discretization's reference configuration.
+fn standard<'a, const D: usize>(
+    discretization: &'a Discretization<D>,
+    law: &'a PmbLaw,
+) -> Standard<'a, D> {
+    Standard {
+        reference: discretization.nodes.base.reference(),
+        volumes: discretization.nodes.base.volumes(),
+        uniform_volume: discretization.uniform_volume,
+        families: &discretization.families,
+        law,
+        quadrature: &discretization.quadrature,
+    }
+}
+
+/// The stable step of velocity-Verlet on the linearized operator (with the hybrid's WLS rows
+/// where there is one): the power-iterated sharp limit, never below the guaranteed (3.8).
+fn stable_step<const D: usize>(
+    scheme: &Standard<'_, D>,
+    intact: &[u8],
+    density: f64,
+    hybrid: Option<&Hybrid<D>>,
+) -> StableStep {
+    let n = scheme.reference.len();
+    let gershgorin_dt = integrate::stable_step(density, &scheme.stiffness_sums());
+    let masses: Vec<f64> = scheme.volumes.iter().map(|v| v * density).collect();
+    let coefficients = scheme.linearized_coefficients(density);
+    let lambda_max = stability::max_eigenvalue::<D>(n, &masses, POWER_ITERATIONS, |u, out| {
+        scheme.apply_linearized(&coefficients, intact, u, out)
+    });
+    // The Rayleigh quotient approaches λ_max from below: keep a margin, and never go below the
+    // guaranteed (3.8) bound.
+    let mut sharp = stability::verlet_step(lambda_max).max(gershgorin_dt);
+    if let Some(h) = hybrid {
+        // The WLS blocks are not symmetric and their stencil is tighter than the family's: the
+        // hybrid operator's spectral radius (power iteration) bounds Δt too, and (3.8) does not
+        // cover it.
+        let radius = stability::spectral_radius(n * D, HYBRID_ITERATIONS, |v, out| {
+            let u = v.as_chunks::<D>().0;
+            let out = out.as_chunks_mut::<D>().0;
+            let mask = h.mask();
+            scheme.apply_linearized_masked(&coefficients, intact, u, out, |i| {
+                mask[i] == SchemeClass::Wls
+            });
+            h.apply_linearized(u, density, out);
+        });
+        sharp = sharp.min(stability::verlet_step(radius));
+    }
+    StableStep {
+        sharp,
+        guaranteed: gershgorin_dt,
+        integrator: Integrator::Verlet,
+    }
+}
+
+impl<const D: usize> DynamicSimulation<D> {
+    pub fn new(scene: &Scene) -> Result<Self, SceneError> {
+        let mut discretization = Discretization::<D>::of_scene(scene)?;
+        let intact = discretization.intact_bonds(scene)?;
+        let Some(m) = scene.material.as_ref() else {
+            return Err(scene.error(
+                "material",
+                "dynamics needs an elastic material (density, youngs_modulus or micromodulus)",
+            ));
+        };
+        let law = PmbLaw::new(&m.constants, scene.horizon, D);
+        let density = m.density;
+        let hybrid = match scene.hybrid {
+            None => None,
+            Some(spec) => {
+                let reference = discretization.nodes.reference();
+                let mask = hybrid::initial_mask(
+                    reference,
+                    &scene.solid,
+                    &scene.precracks,
+                    spec.band,
+                    scene.spacing,
+                );
+                let h = Hybrid::new(
+                    spec,
+                    mask,
+                    reference,
+                    &discretization.families,
+                    &law,
+                    scene.scheme.collocation_factor,
+                )
+                .map_err(|e| scene.error("hybrid.collocation_factor", e.to_string()))?;
+                Some(h)
+            }
+        };
+        let scheme = standard(&discretization, &law);
+        let stable = stable_step(&scheme, &intact, density, hybrid.as_ref());
+        let (family_weight, precracked) = scheme.damage_weights(&intact);
+        let clock = solver::setup::clock(scene, &stable)?;
+        let frame_every = solver::setup::frame_every(scene, clock.total_steps());
+
+        let nodes = &mut discretization.nodes;
+        let n = nodes.len();
+        let position = nodes
+            .fields
+            .add_values("position", nodes.base.reference().to_vec());
+        let terms = precracked
+            .iter()
+            .map(|&w| NodeTerms {
+                broken_weight: w,
+                ..NodeTerms::default()
+            })
+            .collect();
+        let mut columns = Columns {
+            position,
+            velocity: nodes.fields.add("velocity", [0.0; D]),
+            acceleration: nodes.fields.add("acceleration", [0.0; D]),
+            terms: nodes.fields.add_values("terms", terms),
+            family_weight: nodes.fields.add_values("family_weight", family_weight),
+            body_force: None,
+        };
+        let (held_velocity, held_displacement, body_force) =
+            boundary_conditions::<D>(scene, &discretization.layers, n);
+        if let Some(body) = body_force {
+            columns.body_force = Some(discretization.nodes.fields.add_values("body_force", body));
+        }
+        let mut sim = DynamicSimulation {
+            scene: scene.clone(),
+            discretization,
+            columns,
+            intact,
+            held_velocity,
+            held_displacement,
+            law,
+            density,
+            stable,
+            clock,
+            frame_every,
+            broken: 0,
+            stages: Stages::new(STAGES),
+            velocity_scale: 1.0,
+            step_wall: StepWall::default(),
+            hybrid,
+            hybrid_violations: 0,
+        };
+        sim.apply_initial_velocity();
+        sim.apply_constraints();
+        sim.velocity_scale = sim.initial_velocity_scale();
+        sim.update_accelerations();
+        Ok(sim)
+    }
+
+    fn apply_initial_velocity(&mut self) {
+        let (lo, hi) = self.scene.solid.bounds();
+        let nodes = &mut self.discretization.nodes;
+        let velocities = nodes.fields.get_mut(self.columns.velocity);
+        for field in &self.scene.initial_velocity {
+            for (v, x) in velocities.iter_mut().zip(nodes.base.reference()) {
+                match *field {
+                    InitialVelocity::Uniform(ref value) => {
+                        for k in 0..D {
+                            v[k] += value[k];
+                        }
+                    }
+                    InitialVelocity::Ramp {
+                        component,
+                        axis,
+                        from,
+                        to,
+                    } => {
+                        let t = (x[axis] - lo[axis]) / (hi[axis] - lo[axis]);
+                        v[component] += from + t * (to - from);
+                    }
+                    InitialVelocity::Sine {
+                        component,
+                        axis,
+                        amplitude,
+                        modes,
+                    } => {
+                        let t = (x[axis] - lo[axis]) / (hi[axis] - lo[axis]);
+                        v[component] += amplitude * (std::f64::consts::PI * modes * t).sin();
+                    }
+                }
+            }
+        }
+    }
+
+    fn nodes(&self) -> &Nodes<D> {
+        &self.discretization.nodes
+    }
+
+    /// Reference positions x.
+    pub fn reference(&self) -> &[[f64; D]] {
+        self.nodes().reference()
+    }
+
+    pub fn volumes(&self) -> &[f64] {
+        self.nodes().volumes()
+    }
+
+    pub fn families(&self) -> &Families {
+        &self.discretization.families
+    }
+
+    pub fn quadrature(&self) -> &Quadrature {
+        &self.discretization.quadrature
+    }
+
+    /// Current positions y = x + u.
+    pub fn positions(&self) -> &[[f64; D]] {
+        self.nodes().fields.get(self.columns.position)
+    }
+
+    /// Current positions, to set by hand (tests, restarts); call `refresh_forces` after.
+    pub fn positions_mut(&mut self) -> &mut [[f64; D]] {
+        self.discretization
+            .nodes
+            .fields
+            .get_mut(self.columns.position)
+    }
+
+    pub fn velocities(&self) -> &[[f64; D]] {
+        self.nodes().fields.get(self.columns.velocity)
+    }
+
+    pub fn velocities_mut(&mut self) -> &mut [[f64; D]] {
+        self.discretization
+            .nodes
+            .fields
+            .get_mut(self.columns.velocity)
+    }
+
+    pub fn accelerations(&self) -> &[[f64; D]] {
+        self.nodes().fields.get(self.columns.acceleration)
+    }
+
+    fn terms(&self) -> &[NodeTerms<D>] {
+        self.nodes().fields.get(self.columns.terms)
+    }
+
+    pub fn density(&self) -> f64 {
+        self.density
+    }
+
+    fn hold_velocities(&mut self) {
+        let velocities = self
+            .discretization
+            .nodes
+            .fields
+            .get_mut(self.columns.velocity);
+        for &(i, a, value) in &self.held_velocity {
+            velocities[i as usize][a as usize] = value;
+        }
+    }
+
+    /// Held velocities and displacements (velocity layers also move the node).
+    fn apply_constraints(&mut self) {
+        self.hold_velocities();
+        let nodes = &mut self.discretization.nodes;
+        let (positions, velocities) = nodes
+            .fields
+            .pair_mut(self.columns.position, self.columns.velocity);
+        let reference = nodes.base.reference();
+        for &(i, a, value) in &self.held_displacement {
+            let (i, a) = (i as usize, a as usize);
+            positions[i][a] = reference[i][a] + value;
+            velocities[i][a] = 0.0;
+        }
+    }
+
+    fn initial_velocity_scale(&self) -> f64 {
+        let max = self
+            .velocities()
+            .iter()
+            .map(|v| v.iter().map(|x| x * x).sum::<f64>().sqrt())
+            .fold(0.0, f64::max);
+        if max > 0.0 { 2.0 * max } else { 1.0 }
+    }
+
+    /// The standard scheme over this simulation's discretization.
+    pub fn scheme(&self) -> Standard<'_, D> {
+        standard(&self.discretization, &self.law)
+    }
+
+    fn update_accelerations(&mut self) {
+        self.compute_forces();
+        self.accelerate(None);
+    }
+
+    /// Force densities at the current positions: the PMB bond loop (Ω_s rows only in a
+    /// hybrid) and the WLS product on Ω_w.
+    fn compute_forces(&mut self) {
+        let Discretization {
+            nodes,
+            families,
+            quadrature,
+            uniform_volume,
+            ..
+        } = &mut self.discretization;
+        let scheme = Standard {
+            reference: nodes.base.reference(),
+            volumes: nodes.base.volumes(),
+            uniform_volume: *uniform_volume,
+            families,
+            law: &self.law,
+            quadrature,
+        };
+        let (positions, terms) = nodes
+            .fields
+            .pair_mut(self.columns.position, self.columns.terms);
+        let mask = self.hybrid.as_ref().map(|h| h.mask());
+        self.broken += scheme.forces_masked(positions, &mut self.intact, terms, mask);
+        if let Some(h) = self.hybrid.as_mut() {
+            h.wls_forces(nodes.base.reference(), positions);
+        }
+    }
+
+    /// ü = (f + b)/ρ per node, Ω_w nodes taking their WLS force (their `terms` are left
+    /// alone: nothing reads an Ω_w node's bond-loop terms). With `kick = Some(Δt)` the second
+    /// half kick (3.6) runs in the same pass; returns the largest squared speed then
+    /// (NaN-propagating), 0 otherwise.
+    fn accelerate(&mut self, kick: Option<f64>) -> f64 {
+        let inv_rho = 1.0 / self.density;
+        let c = self.columns;
+        let fields = &mut self.discretization.nodes.fields;
+        let (accelerations, velocities, terms, body): (_, _, &mut [NodeTerms<D>], &[[f64; D]]) =
+            match c.body_force {
+                Some(b) => {
+                    let (a, v, t, b) = fields.quad_mut(c.acceleration, c.velocity, c.terms, b);
+                    (a, v, t, b)
+                }
+                None => {
+                    let (a, v, t) = fields.triple_mut(c.acceleration, c.velocity, c.terms);
+                    (a, v, t, &[])
+                }
+            };
+        let (terms, hybrid) = (&*terms, self.hybrid.as_ref());
+        accelerations
+            .par_iter_mut()
+            .zip(velocities)
+            .enumerate()
+            .with_min_len(4096)
+            .map(|(i, (a, v))| {
+                let force = match hybrid.and_then(|h| h.wls_force_of(i)) {
+                    Some(force) => force,
+                    None => terms[i].force,
+                };
+                for k in 0..D {
+                    let b = if body.is_empty() { 0.0 } else { body[i][k] };
+                    a[k] = (force[k] + b) * inv_rho;
+                }
+                kick.map_or(0.0, |dt| verlet::kick_node(v, a, dt))
+            })
+            .reduce(|| 0.0, verlet::max_or_nan)
+    }
+
+    /// Damage φ_i (2.36), kept up to date by the force loop as bonds break.
+    pub fn damage(&self) -> Vec<f64> {
+        let family_weight = self.nodes().fields.get(self.columns.family_weight);
+        self.terms()
+            .iter()
+            .zip(family_weight)
+            .map(|(t, &all)| {
+                if all > 0.0 {
+                    t.broken_weight / all
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+
+    /// Damage recomputed from the bond states in one pass over all bonds (a check of
+    /// `damage`).
+    pub fn damage_from_bonds(&self) -> Vec<f64> {
+        self.scheme().damage(&self.intact)
+    }
+
+    pub fn strain_energy(&self) -> f64 {
+        self.scheme().strain_energy(self.positions(), &self.intact)
+    }
+
+    /// Bytes held by the solver state: bond arrays and the per-node store.
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        let families = self.families();
+        size_of_val(families.neighbors.as_slice())
+            + size_of_val(families.lengths.as_slice())
+            + size_of_val(families.offsets.as_slice())
+            + size_of_val(self.intact.as_slice())
+            + self.nodes().memory_bytes()
+    }
+
+    /// Strain-energy density W_i of one node (J/m³).
+    pub fn energy_density(&self, i: usize) -> f64 {
+        self.scheme()
+            .energy_density(i, self.positions(), &self.intact)
+    }
+
+    pub fn kinetic_energy_and_momentum(&self) -> (f64, [f64; D]) {
+        metrics::kinetic_energy_and_momentum(self.velocities(), self.volumes(), self.density)
+    }
+
+    /// Force density on each node at the current positions (N/m³), without body forces.
+    pub fn force_density(&self) -> Vec<[f64; D]> {
+        let hybrid = self.hybrid.as_ref();
+        self.terms()
+            .iter()
+            .enumerate()
+            .map(|(i, t)| hybrid.and_then(|h| h.wls_force_of(i)).unwrap_or(t.force))
+            .collect()
+    }
+
+    /// Recomputes forces after positions were set by hand (tests, restarts).
+    pub fn refresh_forces(&mut self) {
+        self.update_accelerations();
+    }
+
+    /// The hybrid invariant: bonds broken with an Ω_w end. Damage that reached Ω_w (possible
+    /// only with a check policy other than every bond every step) switches those nodes at once.
+    pub fn enforce_hybrid_invariant(&mut self) -> usize {
+        let (step, time) = (self.clock.step(), self.clock.time());
+        match self.hybrid.as_mut() {
+            Some(h) => {
+                let found = h.enforce(step, time, &self.intact, &self.discretization.families);
+                self.hybrid_violations += found as u64;
+                found
+            }
+            None => 0,
+        }
+    }
+
+    /// The scheme mask, Ω_s fraction, switching events and invariant count of a frame.
+    fn hybrid_frame(&mut self, scalars: &mut Vec<(String, f64)>) -> (Vec<ClassField>, Vec<String>) {
+        if self.hybrid.is_none() {
+            return (Vec::new(), Vec::new());
+        }
+        self.enforce_hybrid_invariant();
+        let violations = self.hybrid_violations as f64;
+        let Some(h) = self.hybrid.as_mut() else {
+            return (Vec::new(), Vec::new());
+        };
+        let events: Vec<String> = h.take_events().iter().map(|e| e.to_string()).collect();
+        scalars.push(("hybrid/omega_s_fraction".into(), h.standard_fraction()));
+        scalars.push(("hybrid/chi".into(), h.spec.chi));
+        scalars.push(("hybrid/violations".into(), violations));
+        scalars.push(("hybrid/checked_bonds".into(), h.checked_bonds as f64));
+        scalars.push(("hybrid/full_checks".into(), h.full_checks as f64));
+        scalars.push(("hybrid/filtered_checks".into(), h.filtered_checks as f64));
+        (vec![SchemeClass::field(h.mask(), false)], events)
+    }
+
+    fn crack_angles_for(&self, damage: &[f64]) -> Vec<(String, Option<f64>)> {
+        self.scene
+            .crack_angles
+            .iter()
+            .map(|spec| {
+                let angle = metrics::crack_angle(
+                    spec,
+                    self.reference(),
+                    damage,
+                    self.families(),
+                    self.scene.spacing,
+                    self.scene.horizon,
+                );
+                (spec.name.clone(), angle)
+            })
+            .collect()
+    }
+}
+
+/// Held velocities, held displacements and body forces of the scene's layers (`layers`: the
+/// nodes each selects). Scalar-field conditions are refused for dynamics by validation.
+#[allow(clippy::type_complexity)]
+fn boundary_conditions<const D: usize>(
+    scene: &Scene,
+    layers: &[Vec<u32>],
+    n: usize,
+) -> (Vec<Held>, Vec<Held>, Option<Vec<[f64; D]>>) {
+    let (mut velocity, mut displacement) = (Vec::new(), Vec::new());
+    let mut body: Option<Vec<[f64; D]>> = None;
+    for (layer, nodes) in scene.boundary.iter().zip(layers) {
+        for &i in nodes {
+            let held = layer.axes.iter().map(|&a| (i, a as u8, layer.value[a]));
+            match layer.condition {
+                Condition::Velocity => velocity.extend(held),
+                Condition::Displacement => displacement.extend(held),
+                Condition::Reference | Condition::Value => {}
+                Condition::BodyForce => {
+                    let body = body.get_or_insert_with(|| vec![[0.0; D]; n]);
+                    for &a in &layer.axes {
+                        body[i as usize][a] += layer.value[a];
+                    }
+                }
+            }
+        }
+    }
+    (velocity, displacement, body)
+}
+
+impl<const D: usize> Stepper for DynamicSimulation<D> {
+    fn step(&mut self) -> Result<(), SimError> {
+        let dt = self.clock.dt();
+        let mut lap = Lap::start();
+        {
+            let c = self.columns;
+            let fields = &mut self.discretization.nodes.fields;
+            let (velocities, accelerations) = fields.pair_mut(c.velocity, c.acceleration);
+            verlet::half_kick(velocities, accelerations, dt);
+        }
+        self.hold_velocities();
+        {
+            let c = self.columns;
+            let fields = &mut self.discretization.nodes.fields;
+            let (positions, velocities) = fields.pair_mut(c.position, c.velocity);
+            verlet::drift(positions, velocities, dt);
+        }
+        lap.charge(&mut self.stages, KICK_DRIFT);
+        // Switch before the force pass evaluates damage on u^{n+1} (§5 step 4–5).
+        if let Some(h) = self.hybrid.as_mut() {
+            let d = &self.discretization;
+            h.check(
+                self.clock.step() + 1,
+                self.clock.next_time(),
+                d.nodes.reference(),
+                d.nodes.fields.get(self.columns.position),
+                &d.families,
+                self.law.critical_stretch,
+            );
+        }
+        lap.charge(&mut self.stages, SWITCHING);
+        self.compute_forces();
+        lap.charge(&mut self.stages, FORCES);
+        let max_speed2 = self.accelerate(Some(dt));
+        lap.charge(&mut self.stages, KICK);
+        self.apply_constraints();
+        lap.charge(&mut self.stages, CONSTRAINTS);
+        self.clock.advance();
+        let max_speed = max_speed2.sqrt();
+        if max_speed.is_nan() || max_speed * dt > 0.5 * self.scene.spacing {
+            return Err(SimError::Unstable {
+                step: self.clock.step(),
+                time: self.clock.time(),
+                max_speed,
+                dt,
+                stable_dt: self.stable.sharp,
+            });
+        }
+        Ok(())
+    }
+
+    fn frame(&mut self) -> Frame {
+        let damage = self.damage();
+        let speed: Vec<f64> = self
+            .velocities()
+            .iter()
+            .map(|v| v.iter().map(|x| x * x).sum::<f64>().sqrt())
+            .collect();
+        let (kinetic, momentum) = self.kinetic_energy_and_momentum();
+        // W_i from the last force evaluation, at the current positions. An Ω_w node's WLS
+        // force has no local energy density (−½ u_i·f_i sums to the energy only over a whole
+        // WLS body): its PMB bond energy over its family is evaluated here, at frame time.
+        let mask = self.hybrid.as_ref().map(|h| h.mask());
+        let (terms, volumes) = (self.terms(), self.volumes());
+        let node_energy: Vec<f64> = (0..volumes.len())
+            .into_par_iter()
+            .map(|i| {
+                let w = match mask {
+                    Some(m) if m[i] == SchemeClass::Wls => self.energy_density(i),
+                    _ => terms[i].energy_density,
+                };
+                w * volumes[i]
+            })
+            .collect();
+        let strain: f64 = node_energy.iter().sum();
+        let step_wall = self.step_wall.per_step(self.clock.step());
+        let mut scalars = vec![
+            ("energy/kinetic".to_string(), kinetic),
+            ("energy/strain".to_string(), strain),
+            ("energy/total".to_string(), kinetic + strain),
+            ("bonds/broken".to_string(), self.broken as f64),
+            ("timing/step_wall_s".to_string(), step_wall),
+        ];
+        scalars.extend(self.stages.scalars());
+        for (k, p) in momentum.iter().enumerate() {
+            scalars.push((format!("momentum/{}", ["x", "y", "z"][k]), *p));
+        }
+        let (classes, events) = self.hybrid_frame(&mut scalars);
+        for (name, angle) in self.crack_angles_for(&damage) {
+            if let Some(a) = angle {
+                scalars.push((format!("crack_angle_deg/{name}"), a));
+            }
+        }
+        Frame {
+            step: self.clock.step(),
+            time: self.clock.time(),
+            dim: D,
+            positions: self.positions().as_flattened().to_vec(),
+            fields: vec![
+                NodeField {
+                    name: "damage",
+                    values: damage,
+                    range: (0.0, 1.0),
+                },
+                NodeField {
+                    name: "velocity",
+                    values: speed,
+                    range: (0.0, self.velocity_scale),
+                },
+            ],
+            classes,
+            events,
+            scalars,
+        }
+    }
+
+    fn info(&self) -> SimInfo {
+        let (nodes, bonds) = (self.nodes().len(), self.families().bond_count());
+        SimInfo {
+            dim: D,
+            nodes,
+            bonds,
+            dt: self.clock.dt(),
+            stable_dt: self.stable.sharp,
+            gershgorin_dt: self.stable.guaranteed,
+            total_steps: self.clock.total_steps(),
+            frame_every: self.frame_every,
+            bytes_per_bond: self.memory_bytes() as f64 / bonds.max(1) as f64,
+            stencil: bonds as f64 / nodes.max(1) as f64 + 1.0,
+        }
+    }
+
+    fn clock(&self) -> &Clock {
+        &self.clock
+    }
+
+    fn clock_mut(&mut self) -> &mut Clock {
+        &mut self.clock
+    }
+
+    fn stages(&self) -> &Stages {
+        &self.stages
+    }
+
+    fn tune(&mut self, param: Param) -> Result<(), String> {
+        match (param, self.hybrid.as_mut()) {
+            (Param::Chi(chi), Some(h)) => h.set_chi(chi),
+            (param, None) => Err(param.unused_note().into()),
+        }
+    }
+
+    fn crack_angles(&self) -> Vec<(String, Option<f64>)> {
+        self.crack_angles_for(&self.damage())
+    }
+
+    fn broken_bonds(&self) -> u64 {
+        self.broken
+    }
+}

@@ -1,0 +1,27 @@
+//! The simulations of every physics and the one builder above them: a scene becomes a
+//! dimension-erased [`Stepper`]. Nothing outside this module names a concrete simulation type
+//! (checked by `tests/architecture.rs`).
+
+pub mod dynamics;
+pub mod scalar;
+
+pub use dynamics::DynamicSimulation;
+pub use scalar::ScalarSimulation;
+
+use crate::scene::{Physics, Scene, SceneError};
+use crate::solver::Stepper;
+
+/// Builds the simulation of a scene, in its dimension and for its physics.
+pub fn build(scene: &Scene) -> Result<Box<dyn Stepper>, SceneError> {
+    fn boxed<S: Stepper + 'static>(sim: Result<S, SceneError>) -> Result<Box<dyn Stepper>, SceneError> {
+        Ok(Box::new(sim?))
+    }
+    match (scene.physics, scene.dim) {
+        (Physics::Dynamics, 1) => boxed(DynamicSimulation::<1>::new(scene)),
+        (Physics::Dynamics, 2) => boxed(DynamicSimulation::<2>::new(scene)),
+        (Physics::Dynamics, _) => boxed(DynamicSimulation::<3>::new(scene)),
+        (_, 1) => boxed(ScalarSimulation::<1>::new(scene)),
+        (_, 2) => boxed(ScalarSimulation::<2>::new(scene)),
+        (_, _) => boxed(ScalarSimulation::<3>::new(scene)),
+    }
+}

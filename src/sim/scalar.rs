@@ -1,0 +1,656 @@
+//! Scalar-field simulations: a static linear solve (1D elasticity, seed-004 §4.1) or transient
+//! PD diffusion with forward Euler (31) (§4.2), on either scheme, and bi-material corrosion
+//! (thesis §2.4) with its phase change, optionally on the fixed hybrid. The field is held at
+//! the reference solution in `hold_reference` layers (or at a value in `hold_value` layers);
+//! frames carry the field and its pointwise error against the reference, and the relative ℓ²
+//! error (66)/(3.79).
+
+use rayon::prelude::*;
+
+use crate::adapt::fixed::{self, FixedHybrid};
+use crate::adapt::masks::{Phase, SchemeClass};
+use crate::adapt::phase::PhaseChange;
+use crate::discretization::{Discretization, Families, Field, Quadrature};
+use crate::frame::{Frame, NodeField};
+use crate::integrate::linear::BandMatrix;
+use crate::integrate::stability;
+use crate::model::corrosion::CorrosionLaw;
+use crate::model::diffusion::DiffusionKernel;
+use crate::model::pmb::{Influence, PmbLaw};
+use crate::scene::{Condition, Physics, Reference, Scene, SceneError, StepSize};
+use crate::scheme::ScalarOperator;
+use crate::scheme::standard;
+use crate::scheme::wls::{self, Basis};
+use crate::solver::{
+    self, Clock, Integrator, Lap, SimError, SimInfo, StableStep, Stages, StepWall, Stepper,
+};
+
+/// A static solve's one stage.
+const STATIC_STAGES: &[&str] = &["solve"];
+/// Forward Euler's stages, in the order `step()` runs them.
+const EULER_STAGES: &[&str] = &["rates", "update", "hold", "phase_change"];
+const RATES: usize = 0;
+const UPDATE: usize = 1;
+const HOLD: usize = 2;
+const PHASE_CHANGE: usize = 3;
+
+/// Power iterations for the forward-Euler bound of a (possibly non-symmetric) operator.
+const POWER_ITERATIONS: usize = 300;
+/// A field this many times larger than its scale has diverged.
+const DIVERGENCE_FACTOR: f64 = 1e6;
+
+/// Corrosion scenes: the law of the bond classes and the phase change with its column.
+struct Corrosion {
+    law: CorrosionLaw,
+    change: PhaseChange,
+    phase: Field<Phase>,
+}
+
+pub struct ScalarSimulation<const D: usize> {
+    scene: Scene,
+    discretization: Discretization<D>,
+    field: Field<f64>,
+    /// The kernel of the scalar operator: diffusion's κ ω/‖ξ‖^q, or in 1D static elasticity
+    /// the linearized bond force c ω/|ξ| (κ = c, q = 1).
+    kernel: DiffusionKernel,
+    /// Rows: the free nodes (Ω_s's only, in a hybrid), in increasing order.
+    operator: ScalarOperator,
+    held: Vec<u32>,
+    /// The operator's value on each of its rows, then (forward Euler) the row's new value.
+    rate: Vec<f64>,
+    reference: Option<Reference>,
+    corrosion: Option<Corrosion>,
+    hybrid: Option<FixedHybrid>,
+    stable: StableStep,
+    clock: Clock,
+    frame_every: u64,
+    stages: Stages,
+    /// |field| scale for the color range and the divergence check.
+    amplitude: f64,
+    step_wall: StepWall,
+    /// Events since the last frame.
+    events: Vec<String>,
+}
+
+/// The physical kernel of the scene's scalar operator (κ_liq for corrosion).
+fn kernel(scene: &Scene, dim: usize) -> DiffusionKernel {
+    match (&scene.diffusion, &scene.material) {
+        (Some(d), _) => DiffusionKernel {
+            diffusivity: d.diffusivity,
+            exponent: d.exponent,
+            influence: d.influence,
+            horizon: scene.horizon,
+        },
+        (None, m) => DiffusionKernel {
+            diffusivity: m.as_ref().map_or(0.0, |m| {
+                PmbLaw::new(&m.constants, scene.horizon, dim).micromodulus
+            }),
+            exponent: 1.0,
+            influence: m
+                .as_ref()
+                .map_or(Influence::Constant, |m| m.constants.influence),
+            horizon: scene.horizon,
+        },
+    }
+}
+
+/// Assembles the scheme's operator with `kernel` on the rows `free` (standard (3.4) or WLS
+/// §3.4).
+pub fn assemble<const D: usize>(
+    scene: &Scene,
+    positions: &[[f64; D]],
+    volumes: &[f64],
+    families: &Families,
+    kernel: &DiffusionKernel,
+    free: &[u32],
+) -> Result<ScalarOperator, String> {
+    match scene.scheme.kind.wls_order() {
+        // Identical cells and nominal β, also on a perturbed grid (seed-004 §4.2).
+        None => Ok(standard::diffusion_operator::<D>(
+            free,
+            volumes,
+            families,
+            &Quadrature::of_scene(scene),
+            kernel,
+        )),
+        Some(order) => {
+            let basis = Basis::new(D, order);
+            let l = wls::diffusion_l(
+                &basis,
+                kernel.diffusivity,
+                kernel.exponent,
+                scene.horizon,
+                kernel.influence,
+            );
+            wls::diffusion_operator(
+                free,
+                positions,
+                families,
+                &basis,
+                &l,
+                scene.horizon,
+                scene.scheme.collocation_factor,
+            )
+            .map_err(|e| e.to_string())
+        }
+    }
+}
+
+/// The initial field: the initial-concentration regions (later ones win), else the reference
+/// at t = 0, else 0; `hold_value` layers hold their value from the start (later layers win).
+fn initial_field<const D: usize>(
+    scene: &Scene,
+    positions: &[[f64; D]],
+    layers: &[Vec<u32>],
+) -> Vec<f64> {
+    let eps = 1e-9 * scene.spacing;
+    let mut field: Vec<f64> = positions
+        .iter()
+        .map(|x| {
+            let set = scene
+                .initial_concentration
+                .iter()
+                .rev()
+                .find(|(region, _)| region.contains(x, eps))
+                .map(|(_, v)| *v);
+            set.unwrap_or_else(|| scene.reference.map_or(0.0, |r| r.value(x, 0.0)))
+        })
+        .collect();
+    for (layer, nodes) in scene.boundary.iter().zip(layers) {
+        if layer.condition == Condition::Value {
+            for &i in nodes {
+                field[i as usize] = layer.value[0];
+            }
+        }
+    }
+    field
+}
+
+/// Forward Euler's stable step for `operator` (its rows scaled by `kappa_scale`) and the
+/// hybrid's WLS rows: Gershgorin discs first; the power iteration (300 operator passes) only
+/// when the requested step is above the discs' bound.
+fn euler_stable_step(
+    scene: &Scene,
+    n: usize,
+    operator: &ScalarOperator,
+    kappa_scale: f64,
+    hybrid: Option<&FixedHybrid>,
+) -> StableStep {
+    let gershgorin = (kappa_scale * operator.max_absolute_row_sum())
+        .max(hybrid.map_or(0.0, |h| h.wls.max_absolute_row_sum()));
+    let guaranteed = stability::euler_limit(gershgorin);
+    let sharp = match scene.time.step {
+        StepSize::Absolute(dt) if dt <= guaranteed => guaranteed,
+        _ => {
+            let radius = stability::spectral_radius(n, POWER_ITERATIONS, |v, out| {
+                operator.apply(v, out);
+                out.iter_mut().for_each(|o| *o *= kappa_scale);
+                if let Some(h) = hybrid {
+                    for (r, &i) in h.wls.rows.iter().enumerate() {
+                        out[i as usize] = h.wls.apply_row_with(r, |j| [v[j]])[0];
+                    }
+                }
+            });
+            stability::euler_step(radius)
+        }
+    };
+    StableStep {
+        sharp,
+        guaranteed,
+        integrator: Integrator::Euler,
+    }
+}
+
+impl<const D: usize> ScalarSimulation<D> {
+    pub fn new(scene: &Scene) -> Result<Self, SceneError> {
+        let mut discretization = Discretization::<D>::of_scene(scene)?;
+        let n = discretization.len();
+        let mut is_held = vec![false; n];
+        for (layer, nodes) in scene.boundary.iter().zip(&discretization.layers) {
+            if matches!(layer.condition, Condition::Reference | Condition::Value) {
+                nodes.iter().for_each(|&i| is_held[i as usize] = true);
+            }
+        }
+        let (free, held): (Vec<u32>, Vec<u32>) =
+            (0..n as u32).partition(|&i| !is_held[i as usize]);
+        if free.is_empty() {
+            return Err(scene.error(
+                "boundary",
+                "the held layers cover every node: nothing is left to solve",
+            ));
+        }
+        let positions = discretization.nodes.reference();
+        let volumes = discretization.nodes.volumes();
+        let field = initial_field(scene, positions, &discretization.layers);
+        let kernel = kernel(scene, D);
+        let corrosion = scene.diffusion.and_then(|d| d.corrosion).map(|c| {
+            let law = CorrosionLaw {
+                kappa_liquid: kernel.diffusivity,
+                kappa_interface: c.interface_diffusivity,
+                saturation: c.saturation,
+            };
+            let (change, phase) = PhaseChange::initial(&law, &field, volumes);
+            (law, change, phase)
+        });
+        let hybrid = match (&scene.hybrid, &corrosion) {
+            (Some(spec), Some((_, _, phase))) => {
+                let solid: Vec<bool> = phase.iter().map(|p| p.is_solid()).collect();
+                let mask = fixed::corrosion_mask(positions, &solid, &is_held, spec.band);
+                let h = FixedHybrid::new(
+                    mask,
+                    positions,
+                    &discretization.families,
+                    &kernel,
+                    scene.scheme.collocation_factor,
+                )
+                .map_err(|e| scene.error("hybrid.collocation_factor", e.to_string()))?;
+                Some(h)
+            }
+            _ => None,
+        };
+        let standard_rows: Vec<u32> = match &hybrid {
+            Some(h) => free
+                .into_iter()
+                .filter(|&i| h.mask[i as usize] == SchemeClass::Standard)
+                .collect(),
+            None => free,
+        };
+        // Corrosion: κ depends on the bond's class; the operator is assembled with κ = 1 and
+        // the bond sum weights each bond by its κ.
+        let assembled = match corrosion {
+            Some(_) => DiffusionKernel {
+                diffusivity: 1.0,
+                ..kernel
+            },
+            None => kernel,
+        };
+        let operator = assemble(
+            scene,
+            positions,
+            volumes,
+            &discretization.families,
+            &assembled,
+            &standard_rows,
+        )
+        .map_err(|m| scene.error("discretization.collocation_factor", m))?;
+        let amplitude = scene
+            .reference
+            .map_or(0.0, |r| r.amplitude(positions.iter().map(|x| x.as_slice())))
+            .max(field.iter().fold(0.0, |a: f64, v| a.max(v.abs())));
+        let (stable, stage_names) = match scene.physics {
+            Physics::Static => (StableStep::NONE, STATIC_STAGES),
+            _ => {
+                // The unit operator times the largest bond κ bounds the corrosion operator's
+                // spectrum.
+                let kappa_scale = corrosion.as_ref().map_or(1.0, |(law, ..)| law.kappa_max());
+                let stable = euler_stable_step(scene, n, &operator, kappa_scale, hybrid.as_ref());
+                (stable, EULER_STAGES)
+            }
+        };
+        let clock = solver::setup::clock(scene, &stable)?;
+        let nodes = &mut discretization.nodes;
+        let field = nodes.fields.add_values("field", field);
+        let corrosion = corrosion.map(|(law, change, phase)| Corrosion {
+            law,
+            change,
+            phase: nodes.fields.add_values("phase", phase),
+        });
+        let rows = operator.rows.len();
+        Ok(ScalarSimulation {
+            frame_every: solver::setup::frame_every(scene, clock.total_steps()),
+            scene: scene.clone(),
+            discretization,
+            field,
+            kernel,
+            operator,
+            held,
+            rate: vec![0.0; rows],
+            reference: scene.reference,
+            corrosion,
+            hybrid,
+            stable,
+            clock,
+            stages: Stages::new(stage_names),
+            amplitude,
+            step_wall: StepWall::default(),
+            events: Vec::new(),
+        })
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The current field, one value per node.
+    pub fn field(&self) -> &[f64] {
+        self.discretization.nodes.fields.get(self.field)
+    }
+
+    pub fn positions(&self) -> &[[f64; D]] {
+        self.discretization.nodes.reference()
+    }
+
+    pub fn operator(&self) -> &ScalarOperator {
+        &self.operator
+    }
+
+    fn phase(&self) -> Option<&[Phase]> {
+        let c = self.corrosion.as_ref()?;
+        Some(self.discretization.nodes.fields.get(c.phase))
+    }
+
+    /// Relative ℓ² error (66)/(3.79) over all nodes against the reference, if any.
+    pub fn relative_error(&self) -> Option<f64> {
+        let r = self.reference?;
+        let t = self.clock.time();
+        let (num, den) = self
+            .positions()
+            .iter()
+            .zip(self.field())
+            .fold((0.0, 0.0), |(n, d), (x, v)| {
+                let e = r.value(x, t);
+                (n + (v - e).powi(2), d + e * e)
+            });
+        Some(if den > 0.0 {
+            (num / den).sqrt()
+        } else {
+            num.sqrt()
+        })
+    }
+
+    fn hold_reference(&mut self, t: f64) {
+        if let Some(r) = self.reference {
+            let nodes = &mut self.discretization.nodes;
+            let (positions, field) = (nodes.base.reference(), nodes.fields.get_mut(self.field));
+            for &i in &self.held {
+                field[i as usize] = r.value(&positions[i as usize], t);
+            }
+        }
+    }
+
+    /// One global solve of 0 = L u + b on the free nodes, held values moved to the right.
+    fn solve_static(&mut self) -> Result<(), SimError> {
+        let n = self.discretization.len();
+        let mut unknown = vec![u32::MAX; n];
+        for (r, &i) in self.operator.rows.iter().enumerate() {
+            unknown[i as usize] = r as u32;
+        }
+        let op = &self.operator;
+        let unknown = &unknown;
+        let (lower, upper) = BandMatrix::bandwidths((0..op.rows.len()).flat_map(|r| {
+            op.columns[op.offsets[r]..op.offsets[r + 1]]
+                .iter()
+                .filter(|&&j| unknown[j as usize] != u32::MAX)
+                .map(move |&j| (r, unknown[j as usize] as usize))
+        }));
+        let mut matrix = BandMatrix::new(op.rows.len(), lower, upper)
+            .map_err(|e| SimError::Solve(e.to_string()))?;
+        let mut rhs = vec![0.0; op.rows.len()];
+        let (positions, field) = (self.positions(), self.field());
+        for (r, &i) in op.rows.iter().enumerate() {
+            let x = &positions[i as usize];
+            rhs[r] = -self
+                .reference
+                .map_or(0.0, |rf| rf.forcing(x, 0.0, &self.kernel));
+            for e in op.offsets[r]..op.offsets[r + 1] {
+                let j = op.columns[e] as usize;
+                match unknown[j] {
+                    u32::MAX => rhs[r] -= op.weights[e] * field[j],
+                    col => matrix.add(r, col as usize, op.weights[e]),
+                }
+            }
+        }
+        matrix
+            .solve(&mut rhs)
+            .map_err(|e| SimError::Solve(e.to_string()))?;
+        let field = self.discretization.nodes.fields.get_mut(self.field);
+        for (r, &i) in self.operator.rows.iter().enumerate() {
+            field[i as usize] = rhs[r];
+        }
+        Ok(())
+    }
+
+    /// L C on every row: the standard rows (bond-weighted in corrosion scenes) and the
+    /// hybrid's WLS rows.
+    fn rates(&mut self) {
+        let fields = &self.discretization.nodes.fields;
+        let field = fields.get(self.field);
+        match &self.corrosion {
+            Some(c) => {
+                let (law, phase) = (&c.law, fields.get(c.phase));
+                self.operator
+                    .apply_rows_bond_weighted(field, &mut self.rate, |i, j| {
+                        law.bond_diffusivity(phase[i].is_solid(), phase[j].is_solid())
+                    });
+            }
+            None => self.operator.apply_rows(field, &mut self.rate),
+        }
+        if let Some(h) = self.hybrid.as_mut() {
+            h.rates(field);
+        }
+    }
+
+    /// Forward Euler (31): C⁺ = C + Δt (L C + S) on the free nodes (both schemes' rows of a
+    /// hybrid), into the rate buffers, then written to the field; returns max |C⁺|.
+    fn euler_update(&mut self, t: f64) -> f64 {
+        let mut updated = self.euler_rows(t, false);
+        if self.hybrid.is_some() {
+            updated = updated.max(self.euler_rows(t, true));
+        }
+        let field = self.discretization.nodes.fields.get_mut(self.field);
+        for (r, &i) in self.operator.rows.iter().enumerate() {
+            field[i as usize] = self.rate[r];
+        }
+        if let Some(h) = &self.hybrid {
+            for (r, &i) in h.wls.rows.iter().enumerate() {
+                field[i as usize] = h.rate[r];
+            }
+        }
+        updated
+    }
+
+    /// [`Self::euler_update`] on one row set: the Ω_w rows of the hybrid if `liquid`, else
+    /// `operator`'s. The new values go to the rate buffer first (the update is Jacobi-like).
+    fn euler_rows(&mut self, t: f64, liquid: bool) -> f64 {
+        let dt = self.clock.dt();
+        let (reference, kernel) = (self.reference, &self.kernel);
+        let nodes = &self.discretization.nodes;
+        let (positions, field) = (nodes.base.reference(), nodes.fields.get(self.field));
+        let (rows, rates) = match (&mut self.hybrid, liquid) {
+            (Some(h), true) => (&h.wls.rows, &mut h.rate),
+            _ => (&self.operator.rows, &mut self.rate),
+        };
+        rates
+            .par_iter_mut()
+            .enumerate()
+            .map(|(r, rate)| {
+                let i = rows[r] as usize;
+                let source = reference.map_or(0.0, |rf| rf.forcing(&positions[i], t, kernel));
+                *rate = field[i] + dt * (*rate + source);
+                rate.abs()
+            })
+            .reduce(|| 0.0, f64::max)
+    }
+
+    /// Solid nodes below C_sat turn liquid (corrosion scenes), logged as an event.
+    fn change_phases(&mut self) {
+        let Some(c) = &self.corrosion else {
+            return;
+        };
+        let fields = &mut self.discretization.nodes.fields;
+        let (phase, field) = fields.pair_mut(c.phase, self.field);
+        let changed = c.change.update(phase, field);
+        if changed > 0 {
+            self.events.push(format!(
+                "t = {:.4e} s (step {}): {changed} nodes turned liquid",
+                self.clock.next_time(),
+                self.clock.step() + 1
+            ));
+        }
+    }
+
+    /// The frame's corrosion figures and masks: volume loss, solid count, phase and scheme.
+    fn corrosion_frame(&self, scalars: &mut Vec<(String, f64)>) -> Vec<crate::frame::ClassField> {
+        let mut classes = Vec::new();
+        if let (Some(c), Some(phase)) = (&self.corrosion, self.phase()) {
+            let volumes = self.discretization.nodes.volumes();
+            scalars.push((
+                "corrosion/volume_loss".to_string(),
+                c.change.volume_loss(phase, volumes),
+            ));
+            let solid = phase.iter().filter(|p| p.is_solid()).count();
+            scalars.push(("corrosion/solid_nodes".to_string(), solid as f64));
+            if let Some(h) = &self.hybrid {
+                scalars.push(("hybrid/violations".to_string(), h.violations(phase) as f64));
+            }
+            classes.push(Phase::field(phase));
+        }
+        if let Some(h) = &self.hybrid {
+            scalars.push((
+                "hybrid/omega_s_fraction".to_string(),
+                SchemeClass::standard_fraction(&h.mask),
+            ));
+            classes.push(SchemeClass::field(&h.mask, true));
+        }
+        classes
+    }
+}
+
+impl<const D: usize> Stepper for ScalarSimulation<D> {
+    fn step(&mut self) -> Result<(), SimError> {
+        let mut lap = Lap::start();
+        if self.scene.physics == Physics::Static {
+            self.solve_static()?;
+            lap.charge(&mut self.stages, 0);
+            self.clock.advance();
+            return Ok(());
+        }
+        let t = self.clock.time();
+        self.rates();
+        lap.charge(&mut self.stages, RATES);
+        let max_value = self.euler_update(t);
+        lap.charge(&mut self.stages, UPDATE);
+        self.hold_reference(self.clock.next_time());
+        lap.charge(&mut self.stages, HOLD);
+        self.change_phases();
+        lap.charge(&mut self.stages, PHASE_CHANGE);
+        self.clock.advance();
+        let scale = self.amplitude.max(f64::MIN_POSITIVE);
+        if !max_value.is_finite() || max_value > DIVERGENCE_FACTOR * scale {
+            return Err(SimError::Diverged {
+                step: self.clock.step(),
+                time: self.clock.time(),
+                max_value,
+                dt: self.clock.dt(),
+                stable_dt: self.stable.sharp,
+            });
+        }
+        Ok(())
+    }
+
+    fn frame(&mut self) -> Frame {
+        let t = self.clock.time();
+        let (positions, field) = (self.positions(), self.field());
+        // The pointwise error exists only against a reference (none in corrosion scenes).
+        let error: Option<Vec<f64>> = self.reference.map(|r| {
+            positions
+                .iter()
+                .zip(field)
+                .map(|(x, v)| v - r.value(x, t))
+                .collect()
+        });
+        let integral: f64 = field
+            .iter()
+            .zip(self.discretization.nodes.volumes())
+            .map(|(c, v)| c * v)
+            .sum();
+        let mut scalars = vec![
+            ("field/integral".to_string(), integral),
+            (
+                "timing/step_wall_s".to_string(),
+                self.step_wall.per_step(self.clock.step()),
+            ),
+        ];
+        scalars.extend(self.stages.scalars());
+        let amplitude = if self.amplitude > 0.0 {
+            self.amplitude
+        } else {
+            1.0
+        };
+        // Concentrations of corrosion scenes are never negative: the colormap spans [0, max].
+        let lowest = if self.corrosion.is_some() {
+            0.0
+        } else {
+            -amplitude
+        };
+        let mut fields = vec![NodeField {
+            name: match self.scene.physics {
+                Physics::Static => "displacement",
+                _ => "concentration",
+            },
+            values: self.field().to_vec(),
+            range: (lowest, amplitude),
+        }];
+        if let Some(error) = error {
+            let max_error = error.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+            scalars.push(("error/max_abs".to_string(), max_error));
+            if let Some(e) = self.relative_error() {
+                scalars.push(("error/relative_l2".to_string(), e));
+            }
+            let range = if max_error > 0.0 { max_error } else { 1.0 };
+            fields.push(NodeField {
+                name: "error",
+                values: error,
+                range: (-range, range),
+            });
+        }
+        let classes = self.corrosion_frame(&mut scalars);
+        Frame {
+            step: self.clock.step(),
+            time: t,
+            dim: D,
+            positions: self.positions().as_flattened().to_vec(),
+            fields,
+            classes,
+            events: std::mem::take(&mut self.events),
+            scalars,
+        }
+    }
+
+    fn info(&self) -> SimInfo {
+        let op = &self.operator;
+        let (wls_entries, wls_rows) = self
+            .hybrid
+            .as_ref()
+            .map_or((0, 0), |h| (h.wls.columns.len(), h.wls.rows.len()));
+        let entries = op.columns.len() + wls_entries;
+        SimInfo {
+            dim: D,
+            nodes: self.discretization.len(),
+            bonds: entries,
+            dt: self.clock.dt(),
+            stable_dt: self.stable.sharp,
+            gershgorin_dt: self.stable.guaranteed,
+            total_steps: self.clock.total_steps(),
+            frame_every: self.frame_every,
+            bytes_per_bond: 12.0,
+            stencil: entries as f64 / (op.rows.len() + wls_rows).max(1) as f64,
+        }
+    }
+
+    fn clock(&self) -> &Clock {
+        &self.clock
+    }
+
+    fn clock_mut(&mut self) -> &mut Clock {
+        &mut self.clock
+    }
+
+    fn stages(&self) -> &Stages {
+        &self.stages
+    }
+
+    fn relative_error(&self) -> Option<f64> {
+        ScalarSimulation::relative_error(self)
+    }
+}
