@@ -206,7 +206,13 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
         ),
         Command::Replay(args) => {
             let viewer = |file| args.viewer.target(file);
-            cli::replay(&args.file, args.resimulate, args.output.clone(), viewer, args.quiet)
+            cli::replay(
+                &args.file,
+                args.resimulate,
+                args.output.clone(),
+                viewer,
+                args.quiet,
+            )
         }
         Command::Gui(args) => {
             let (preset, variant) = match args.preset {
@@ -314,4 +320,3 @@ struct GuiArgs {
     #[arg(short, long)]
     output: Option<PathBuf>,
 }
-

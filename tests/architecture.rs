@@ -36,7 +36,12 @@ fn code(text: &str) -> String {
 /// roots.
 fn module_of(src: &Path, file: &Path) -> Option<String> {
     let rel = file.strip_prefix(src).unwrap();
-    let first = rel.components().next()?.as_os_str().to_string_lossy().to_string();
+    let first = rel
+        .components()
+        .next()?
+        .as_os_str()
+        .to_string_lossy()
+        .to_string();
     let name = first.trim_end_matches(".rs").to_string();
     (name != "lib" && name != "main").then_some(name)
 }
@@ -83,11 +88,15 @@ fn imports(code: &str, top_file: bool) -> BTreeSet<String> {
     found
 }
 
-fn graph() -> (BTreeMap<String, BTreeSet<String>>, Vec<(PathBuf, String)>) {
+/// Module → the modules it imports.
+type Edges = BTreeMap<String, BTreeSet<String>>;
+
+/// The import graph of the top-level modules, and every file's code.
+fn graph() -> (Edges, Vec<(PathBuf, String)>) {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let mut files = Vec::new();
     sources(&src, &mut files);
-    let mut edges: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    let mut edges = Edges::new();
     let mut texts = Vec::new();
     for file in files {
         let text = code(&std::fs::read_to_string(&file).unwrap());
@@ -107,9 +116,9 @@ fn graph() -> (BTreeMap<String, BTreeSet<String>>, Vec<(PathBuf, String)>) {
 }
 
 /// A circle through `start`, if there is one (depth-first search).
-fn circle(edges: &BTreeMap<String, BTreeSet<String>>, start: &str) -> Option<Vec<String>> {
+fn circle(edges: &Edges, start: &str) -> Option<Vec<String>> {
     fn visit(
-        edges: &BTreeMap<String, BTreeSet<String>>,
+        edges: &Edges,
         start: &str,
         at: &str,
         path: &mut Vec<String>,
@@ -144,13 +153,19 @@ fn the_modules_import_each_other_in_one_direction() {
         .filter_map(|m| circle(&edges, m))
         .map(|c| c.join(" → "))
         .collect();
-    assert!(circles.is_empty(), "import circles:\n{}", circles.join("\n"));
+    assert!(
+        circles.is_empty(),
+        "import circles:\n{}",
+        circles.join("\n")
+    );
 }
 
 #[test]
 fn only_the_builder_names_a_concrete_simulation() {
     let (_, texts) = graph();
-    let sim_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src").join("sim");
+    let sim_dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("src")
+        .join("sim");
     let mut found = Vec::new();
     for (file, text) in &texts {
         if file.starts_with(&sim_dir) {

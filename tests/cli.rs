@@ -521,7 +521,10 @@ fn hybrid_recording_holds_the_scheme_mask_and_omega_s_fraction() {
     assert!(rec.entity("/metrics/hybrid/chi").is_some());
     // The mask's class ids agree with the logged Ω_s fraction, frame by frame.
     for (step, ids) in &scheme.classes {
-        let standard = ids.iter().filter(|&&c| c == SchemeClass::Standard.id()).count();
+        let standard = ids
+            .iter()
+            .filter(|&&c| c == SchemeClass::Standard.id())
+            .count();
         let fraction = standard as f64 / ids.len() as f64;
         assert!((fraction - fractions[step]).abs() < 1e-12, "step {step}");
     }
@@ -591,7 +594,10 @@ fn corrosion_recording_holds_concentration_phase_and_scheme_masks() {
                 .zip(scheme)
                 .all(|(&p, &m)| !(p == Phase::Solid.id() && m == SchemeClass::Wls.id()))
         );
-        let standard = scheme.iter().filter(|&&m| m == SchemeClass::Standard.id()).count();
+        let standard = scheme
+            .iter()
+            .filter(|&&m| m == SchemeClass::Standard.id())
+            .count();
         assert!((standard as f64 / scheme.len() as f64 - omega_s[&step]).abs() < 1e-12);
     }
     assert_eq!(loss[&0], 0.0);

@@ -3,7 +3,7 @@
 //! diffusion scene (its error stays that of an unchanged run), the switching-event times of a
 //! hybrid scene, the frame times and crack metrics of a dynamics scene.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use peridyn::readback;
@@ -44,7 +44,7 @@ impl Printed {
 }
 
 /// Records `preset`/`variant`, with the script text if given; returns what it printed.
-fn record(preset: &str, variant: &str, script: Option<&str>, out: &PathBuf) -> Printed {
+fn record(preset: &str, variant: &str, script: Option<&str>, out: &Path) -> Printed {
     let mut args = vec![
         "record".to_string(),
         preset.into(),
@@ -93,7 +93,11 @@ fn diffusion_keeps_its_end_time_and_its_error_after_a_dt_change() {
         let t = run.number("final time: ");
         assert!((t - 0.01).abs() < 1e-12, "ends at the preset's 10 ms: {t}");
     }
-    assert_eq!(changed.value("steps: "), "1500", "500 of 1e-5 s, 1000 of 5e-6 s");
+    assert_eq!(
+        changed.value("steps: "),
+        "1500",
+        "500 of 1e-5 s, 1000 of 5e-6 s"
+    );
 }
 
 /// Parses `t = 1.2345e-5 s (step 17): …`.

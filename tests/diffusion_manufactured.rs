@@ -4,10 +4,10 @@
 
 use peridyn::report::{self, SweepSpec};
 use peridyn::runner::{self, NullSink};
-use peridyn::sim::ScalarSimulation;
 use peridyn::scene::reference::{pd_of_quartic, quartic};
 use peridyn::scene::{Scene, SchemeKind};
 use peridyn::sim;
+use peridyn::sim::ScalarSimulation;
 use peridyn::solver::SimError;
 
 const PRESET: &str = "diffusion-2d-manufactured";

@@ -18,7 +18,8 @@ fn load(preset: &str, variant: &str, set: &[&str]) -> Scene {
 #[test]
 fn all_standard_hybrid_is_bit_identical_to_the_standard_scheme() {
     let common = ["time.dt=\"50 ns\"", "time.end=\"120 steps\""];
-    let mut standard = DynamicSimulation::<2>::new(&load("kalthoff-winkler", "small", &common)).unwrap();
+    let mut standard =
+        DynamicSimulation::<2>::new(&load("kalthoff-winkler", "small", &common)).unwrap();
     let mut with_hybrid = DynamicSimulation::<2>::new(&load(
         "kalthoff-winkler",
         "small-hybrid",

@@ -3,8 +3,8 @@
 
 mod common;
 
-use peridyn::model::pmb::poisson_ratio;
 use peridyn::model::pmb::Plane;
+use peridyn::model::pmb::poisson_ratio;
 use peridyn::sim::DynamicSimulation;
 
 /// Index of the node nearest the centre of the block.
@@ -47,7 +47,10 @@ fn deform<const D: usize>(sim: &mut DynamicSimulation<D>, map: impl Fn([f64; D])
     sim.refresh_forces();
 }
 
-fn max_force<const D: usize>(sim: &DynamicSimulation<D>, nodes: impl Iterator<Item = usize>) -> f64 {
+fn max_force<const D: usize>(
+    sim: &DynamicSimulation<D>,
+    nodes: impl Iterator<Item = usize>,
+) -> f64 {
     nodes
         .map(|i| {
             sim.force_density()[i]

@@ -268,8 +268,8 @@ fn the_panel_starts_at_the_presets_chi() {
     )
     .unwrap();
     let file = std::env::temp_dir().join(format!("peridyn-panel-chi-{}.rrd", std::process::id()));
-    let outlet = peridyn::record::Outlet::open(&peridyn::record::RecordTarget::File(file.clone()))
-        .unwrap();
+    let outlet =
+        peridyn::record::Outlet::open(&peridyn::record::RecordTarget::File(file.clone())).unwrap();
     let spec = peridyn::control::runspec::RunSpec::new(&scene, None, Some(1));
     let driver = peridyn::control::Driver::start(spec, outlet, "chi").unwrap();
     assert_eq!(driver.state.chi, 0.9);

@@ -40,7 +40,10 @@ impl std::fmt::Display for SwitchEvent {
                 "t = {t:.4e} s (step {step}): damage reached Ω_w; {n} nodes switched to the standard scheme"
             )
         } else {
-            write!(f, "t = {t:.4e} s (step {step}): {n} nodes switched to the standard scheme")
+            write!(
+                f,
+                "t = {t:.4e} s (step {step}): {n} nodes switched to the standard scheme"
+            )
         }
     }
 }
@@ -389,7 +392,8 @@ impl<const D: usize> Hybrid<D> {
                         .range(i)
                         .any(|b| flag[families.neighbors[b] as usize])
                 };
-                let standard: Vec<bool> = mask.iter().map(|&m| m == SchemeClass::Standard).collect();
+                let standard: Vec<bool> =
+                    mask.iter().map(|&m| m == SchemeClass::Standard).collect();
                 let ring1: Vec<bool> = (0..mask.len())
                     .into_par_iter()
                     .map(|i| mask[i] == SchemeClass::Wls && touches(i, &standard))
@@ -590,7 +594,9 @@ impl<const D: usize> Hybrid<D> {
             .flat_map_iter(|j| {
                 families
                     .range(j)
-                    .filter(|&b| intact[b] == 0 && mask[families.neighbors[b] as usize] == SchemeClass::Wls)
+                    .filter(|&b| {
+                        intact[b] == 0 && mask[families.neighbors[b] as usize] == SchemeClass::Wls
+                    })
                     .map(|b| families.neighbors[b])
             })
             .collect();

@@ -16,10 +16,20 @@ pub struct PhaseChange {
 
 impl PhaseChange {
     /// The initial phases of `field` (solid where C ≥ C_sat) and the change that follows them.
-    pub fn initial(law: &CorrosionLaw, field: &[f64], volumes: &[f64]) -> (PhaseChange, Vec<Phase>) {
+    pub fn initial(
+        law: &CorrosionLaw,
+        field: &[f64],
+        volumes: &[f64],
+    ) -> (PhaseChange, Vec<Phase>) {
         let phase: Vec<Phase> = field
             .iter()
-            .map(|&c| if law.solid_at(c) { Phase::Solid } else { Phase::Liquid })
+            .map(|&c| {
+                if law.solid_at(c) {
+                    Phase::Solid
+                } else {
+                    Phase::Liquid
+                }
+            })
             .collect();
         let change = PhaseChange {
             saturation: law.saturation,

@@ -54,10 +54,7 @@ fn measure(
         Ok(Measurement {
             label: label.to_string(),
             threads,
-            force_seconds: sim
-                .stages()
-                .get("forces")
-                .map_or(0.0, |d| d.as_secs_f64()),
+            force_seconds: sim.stages().get("forces").map_or(0.0, |d| d.as_secs_f64()),
             logging_thread_seconds,
             summary,
         })

@@ -7,13 +7,13 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
+use crate::discretization::Quadrature;
 use crate::discretization::family::Families;
 use crate::discretization::grid::Lattice;
 use crate::model::diffusion::DiffusionKernel;
-use crate::model::pmb::{PmbLaw, micromodulus};
 use crate::model::pmb::{Influence, Plane};
+use crate::model::pmb::{PmbLaw, micromodulus};
 use crate::scene::Solid;
-use crate::discretization::Quadrature;
 use crate::scheme::standard::{self, NodeTerms, Standard};
 use crate::scheme::wls::{self, Basis};
 

@@ -182,7 +182,10 @@ pub fn bench(options: &BenchOptions) -> Result<ExitCode, Failure> {
     }
     println!("{}", bench::schemes::report(0.5).map_err(Failure::Runtime)?);
     if !options.schemes_only {
-        println!("{}", bench::hybrid::report("medium").map_err(Failure::Runtime)?);
+        println!(
+            "{}",
+            bench::hybrid::report("medium").map_err(Failure::Runtime)?
+        );
     }
     Ok(ExitCode::SUCCESS)
 }

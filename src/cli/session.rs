@@ -94,8 +94,13 @@ fn run_session(
     let scene = spec.scene().map_err(|e| Failure::BadInput(e.to_string()))?;
     let outlet = Outlet::open(&target).map_err(Failure::Runtime)?;
     let session = crate::record::recording_id(&scene);
-    let driver = Driver::start(spec, outlet, &session).map_err(Failure::BadInput)?;
-    eprintln!("{}", describe(&scene, &driver.info(), Some(driver.total_steps())));
+    // The session's driver closes its recordings at the end; the outlet kept here keeps a
+    // served stream (and its replay buffer) up until Ctrl-C.
+    let driver = Driver::start(spec, outlet.clone(), &session).map_err(Failure::BadInput)?;
+    eprintln!(
+        "{}",
+        describe(&scene, &driver.info(), Some(driver.total_steps()))
+    );
     if !script.is_empty() {
         eprintln!("{} scripted commands", script.len());
     }
@@ -131,6 +136,7 @@ fn run_session(
     if serving && !stop.load(Ordering::Relaxed) {
         wait_while_serving(&stop);
     }
+    drop(outlet);
     print_summary(&summary);
     println!("runs: {}", outcome.runs);
     if let Some(e) = &summary.error {

@@ -154,7 +154,11 @@ impl Columns {
 
     /// A new column with its values.
     pub fn add_values<T: NodeValue>(&mut self, name: &'static str, values: Vec<T>) -> Field<T> {
-        assert_eq!(values.len(), self.len, "column `{name}`: one value per node");
+        assert_eq!(
+            values.len(),
+            self.len,
+            "column `{name}`: one value per node"
+        );
         self.columns.push(Box::new(Typed { name, values }));
         Field {
             index: self.columns.len() - 1,
@@ -320,7 +324,11 @@ impl<const D: usize> Nodes<D> {
     /// Reorders every array: node k becomes the old node `order[k]` (a permutation of
     /// 0..len). Indices held elsewhere (families, masks) must be remapped by the caller.
     pub fn permute(&mut self, order: &[u32]) {
-        assert_eq!(order.len(), self.len(), "permute: a new place for every node");
+        assert_eq!(
+            order.len(),
+            self.len(),
+            "permute: a new place for every node"
+        );
         let mut seen = vec![false; order.len()];
         for &k in order {
             assert!(
@@ -363,7 +371,9 @@ mod tests {
         let mut nodes = Nodes::<2>::new(vec![[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], vec![1.0; 3]);
         let velocity = nodes.fields.add("velocity", [0.0; 2]);
         let phase = nodes.fields.add("phase", 0u8);
-        let concentration = nodes.fields.add_values("concentration", vec![10.0, 11.0, 12.0]);
+        let concentration = nodes
+            .fields
+            .add_values("concentration", vec![10.0, 11.0, 12.0]);
         nodes.fields.get_mut(velocity)[1] = [5.0, 6.0];
         nodes.fields.get_mut(phase)[1] = 1;
         // Two children of node 1 and a node with default values.

@@ -218,4 +218,3 @@ fn log_loop(
     report.busy_seconds += started.elapsed().as_secs_f64();
     result.map(|_| report)
 }
-

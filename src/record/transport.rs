@@ -260,4 +260,3 @@ fn check_reachable(url: &str) -> Result<(), String> {
         "no Rerun viewer is listening at {url}; start one with `rerun` (pip install 'rerun-sdk==0.36.*'), or use --spawn, --serve or `peridyn record`"
     ))
 }
-

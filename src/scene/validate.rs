@@ -175,13 +175,7 @@ pub(super) fn validate(
         .reference
         .as_ref()
         .map(|r| {
-            reference::Reference::from_spec(
-                r,
-                dim,
-                physics,
-                material.as_ref(),
-                diffusion.as_ref(),
-            )
+            reference::Reference::from_spec(r, dim, physics, material.as_ref(), diffusion.as_ref())
         })
         .transpose()
         .map_err(|m| ctx.from_path_message(&m))?;

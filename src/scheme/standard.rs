@@ -8,8 +8,8 @@ use rayon::prelude::*;
 
 use crate::discretization::{Families, NodeValue, Quadrature};
 use crate::model::diffusion::DiffusionKernel;
-use crate::model::pmb::{PmbLaw, influence};
 use crate::model::pmb::Influence;
+use crate::model::pmb::{PmbLaw, influence};
 use crate::scheme::{RowMask, ScalarOperator};
 
 /// What the force loop produces per node.

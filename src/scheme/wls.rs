@@ -950,8 +950,8 @@ mod tests {
     /// c (2D), and in 3D u = (x², 0, 0) gives ρü_x = λ = π c δ⁴/5 (3.58).
     #[test]
     fn bond_based_wls_is_navier_on_quadratics() {
-        use crate::model::pmb::micromodulus;
         use crate::model::pmb::Plane;
+        use crate::model::pmb::micromodulus;
         let (lattice, families, c) = setup::<2>(6, 0.2);
         let horizon = 6.0;
         let basis = Basis::new(2, 2);

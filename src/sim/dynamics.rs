@@ -15,8 +15,7 @@ use crate::model::pmb::PmbLaw;
 use crate::scene::{Condition, InitialVelocity, Scene, SceneError};
 use crate::scheme::standard::{NodeTerms, Standard};
 use crate::solver::{
-    self, Clock, Integrator, Lap, Param, SimError, SimInfo, StableStep, Stages, StepWall,
-    Stepper,
+    Integrator, Lap, Param, RunState, SimError, SimInfo, Size, StableStep, Stepper,
 };
 
 /// Velocity-Verlet's stages, in the order `step()` runs them.
@@ -59,13 +58,9 @@ pub struct DynamicSimulation<const D: usize> {
     held_displacement: Vec<Held>,
     pub law: PmbLaw,
     density: f64,
-    stable: StableStep,
-    clock: Clock,
-    frame_every: u64,
+    run: RunState,
     broken: u64,
-    stages: Stages,
     velocity_scale: f64,
-    step_wall: StepWall,
     /// Hybrid schemes: the Ω_s/Ω_w mask, the WLS blocks and the switching state.
     pub hybrid: Option<Hybrid<D>>,
     /// Bonds found broken with an Ω_w end (the hybrid invariant; 0 when it holds).
@@ -165,8 +160,7 @@ impl<const D: usize> DynamicSimulation<D> {
         let scheme = standard(&discretization, &law);
         let stable = stable_step(&scheme, &intact, density, hybrid.as_ref());
         let (family_weight, precracked) = scheme.damage_weights(&intact);
-        let clock = solver::setup::clock(scene, &stable)?;
-        let frame_every = solver::setup::frame_every(scene, clock.total_steps());
+        let run = RunState::new(scene, stable, STAGES)?;
 
         let nodes = &mut discretization.nodes;
         let n = nodes.len();
@@ -202,13 +196,9 @@ impl<const D: usize> DynamicSimulation<D> {
             held_displacement,
             law,
             density,
-            stable,
-            clock,
-            frame_every,
+            run,
             broken: 0,
-            stages: Stages::new(STAGES),
             velocity_scale: 1.0,
-            step_wall: StepWall::default(),
             hybrid,
             hybrid_violations: 0,
         };
@@ -488,7 +478,7 @@ impl<const D: usize> DynamicSimulation<D> {
     /// The hybrid invariant: bonds broken with an Ω_w end. Damage that reached Ω_w (possible
     /// only with a check policy other than every bond every step) switches those nodes at once.
     pub fn enforce_hybrid_invariant(&mut self) -> usize {
-        let (step, time) = (self.clock.step(), self.clock.time());
+        let (step, time) = (self.run.clock.step(), self.run.clock.time());
         match self.hybrid.as_mut() {
             Some(h) => {
                 let found = h.enforce(step, time, &self.intact, &self.discretization.families);
@@ -569,7 +559,7 @@ fn boundary_conditions<const D: usize>(
 
 impl<const D: usize> Stepper for DynamicSimulation<D> {
     fn step(&mut self) -> Result<(), SimError> {
-        let dt = self.clock.dt();
+        let dt = self.run.clock.dt();
         let mut lap = Lap::start();
         {
             let c = self.columns;
@@ -584,35 +574,35 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
             let (positions, velocities) = fields.pair_mut(c.position, c.velocity);
             verlet::drift(positions, velocities, dt);
         }
-        lap.charge(&mut self.stages, KICK_DRIFT);
+        lap.charge(&mut self.run.stages, KICK_DRIFT);
         // Switch before the force pass evaluates damage on u^{n+1} (§5 step 4–5).
         if let Some(h) = self.hybrid.as_mut() {
             let d = &self.discretization;
             h.check(
-                self.clock.step() + 1,
-                self.clock.next_time(),
+                self.run.clock.step() + 1,
+                self.run.clock.next_time(),
                 d.nodes.reference(),
                 d.nodes.fields.get(self.columns.position),
                 &d.families,
                 self.law.critical_stretch,
             );
         }
-        lap.charge(&mut self.stages, SWITCHING);
+        lap.charge(&mut self.run.stages, SWITCHING);
         self.compute_forces();
-        lap.charge(&mut self.stages, FORCES);
+        lap.charge(&mut self.run.stages, FORCES);
         let max_speed2 = self.accelerate(Some(dt));
-        lap.charge(&mut self.stages, KICK);
+        lap.charge(&mut self.run.stages, KICK);
         self.apply_constraints();
-        lap.charge(&mut self.stages, CONSTRAINTS);
-        self.clock.advance();
+        lap.charge(&mut self.run.stages, CONSTRAINTS);
+        self.run.clock.advance();
         let max_speed = max_speed2.sqrt();
         if max_speed.is_nan() || max_speed * dt > 0.5 * self.scene.spacing {
             return Err(SimError::Unstable {
-                step: self.clock.step(),
-                time: self.clock.time(),
+                step: self.run.clock.step(),
+                time: self.run.clock.time(),
                 max_speed,
                 dt,
-                stable_dt: self.stable.sharp,
+                stable_dt: self.run.stable.sharp,
             });
         }
         Ok(())
@@ -642,15 +632,13 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
             })
             .collect();
         let strain: f64 = node_energy.iter().sum();
-        let step_wall = self.step_wall.per_step(self.clock.step());
         let mut scalars = vec![
             ("energy/kinetic".to_string(), kinetic),
             ("energy/strain".to_string(), strain),
             ("energy/total".to_string(), kinetic + strain),
             ("bonds/broken".to_string(), self.broken as f64),
-            ("timing/step_wall_s".to_string(), step_wall),
         ];
-        scalars.extend(self.stages.scalars());
+        scalars.extend(self.run.timing_scalars());
         for (k, p) in momentum.iter().enumerate() {
             scalars.push((format!("momentum/{}", ["x", "y", "z"][k]), *p));
         }
@@ -661,8 +649,8 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
             }
         }
         Frame {
-            step: self.clock.step(),
-            time: self.clock.time(),
+            step: self.run.clock.step(),
+            time: self.run.clock.time(),
             dim: D,
             positions: self.positions().as_flattened().to_vec(),
             fields: vec![
@@ -685,30 +673,21 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
 
     fn info(&self) -> SimInfo {
         let (nodes, bonds) = (self.nodes().len(), self.families().bond_count());
-        SimInfo {
+        self.run.info(Size {
             dim: D,
             nodes,
             bonds,
-            dt: self.clock.dt(),
-            stable_dt: self.stable.sharp,
-            gershgorin_dt: self.stable.guaranteed,
-            total_steps: self.clock.total_steps(),
-            frame_every: self.frame_every,
             bytes_per_bond: self.memory_bytes() as f64 / bonds.max(1) as f64,
             stencil: bonds as f64 / nodes.max(1) as f64 + 1.0,
-        }
+        })
     }
 
-    fn clock(&self) -> &Clock {
-        &self.clock
+    fn run(&self) -> &RunState {
+        &self.run
     }
 
-    fn clock_mut(&mut self) -> &mut Clock {
-        &mut self.clock
-    }
-
-    fn stages(&self) -> &Stages {
-        &self.stages
+    fn run_mut(&mut self) -> &mut RunState {
+        &mut self.run
     }
 
     fn tune(&mut self, param: Param) -> Result<(), String> {

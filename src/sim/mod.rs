@@ -13,7 +13,9 @@ use crate::solver::Stepper;
 
 /// Builds the simulation of a scene, in its dimension and for its physics.
 pub fn build(scene: &Scene) -> Result<Box<dyn Stepper>, SceneError> {
-    fn boxed<S: Stepper + 'static>(sim: Result<S, SceneError>) -> Result<Box<dyn Stepper>, SceneError> {
+    fn boxed<S: Stepper + 'static>(
+        sim: Result<S, SceneError>,
+    ) -> Result<Box<dyn Stepper>, SceneError> {
         Ok(Box::new(sim?))
     }
     match (scene.physics, scene.dim) {

@@ -21,9 +21,7 @@ use crate::scene::{Condition, Physics, Reference, Scene, SceneError, StepSize};
 use crate::scheme::ScalarOperator;
 use crate::scheme::standard;
 use crate::scheme::wls::{self, Basis};
-use crate::solver::{
-    self, Clock, Integrator, Lap, SimError, SimInfo, StableStep, Stages, StepWall, Stepper,
-};
+use crate::solver::{Integrator, Lap, RunState, SimError, SimInfo, Size, StableStep, Stepper};
 
 /// A static solve's one stage.
 const STATIC_STAGES: &[&str] = &["solve"];
@@ -61,13 +59,9 @@ pub struct ScalarSimulation<const D: usize> {
     reference: Option<Reference>,
     corrosion: Option<Corrosion>,
     hybrid: Option<FixedHybrid>,
-    stable: StableStep,
-    clock: Clock,
-    frame_every: u64,
-    stages: Stages,
+    run: RunState,
     /// |field| scale for the color range and the divergence check.
     amplitude: f64,
-    step_wall: StepWall,
     /// Events since the last frame.
     events: Vec<String>,
 }
@@ -211,8 +205,7 @@ impl<const D: usize> ScalarSimulation<D> {
                 nodes.iter().for_each(|&i| is_held[i as usize] = true);
             }
         }
-        let (free, held): (Vec<u32>, Vec<u32>) =
-            (0..n as u32).partition(|&i| !is_held[i as usize]);
+        let (free, held): (Vec<u32>, Vec<u32>) = (0..n as u32).partition(|&i| !is_held[i as usize]);
         if free.is_empty() {
             return Err(scene.error(
                 "boundary",
@@ -287,7 +280,7 @@ impl<const D: usize> ScalarSimulation<D> {
                 (stable, EULER_STAGES)
             }
         };
-        let clock = solver::setup::clock(scene, &stable)?;
+        let run = RunState::new(scene, stable, stage_names)?;
         let nodes = &mut discretization.nodes;
         let field = nodes.fields.add_values("field", field);
         let corrosion = corrosion.map(|(law, change, phase)| Corrosion {
@@ -297,7 +290,6 @@ impl<const D: usize> ScalarSimulation<D> {
         });
         let rows = operator.rows.len();
         Ok(ScalarSimulation {
-            frame_every: solver::setup::frame_every(scene, clock.total_steps()),
             scene: scene.clone(),
             discretization,
             field,
@@ -308,11 +300,8 @@ impl<const D: usize> ScalarSimulation<D> {
             reference: scene.reference,
             corrosion,
             hybrid,
-            stable,
-            clock,
-            stages: Stages::new(stage_names),
+            run,
             amplitude,
-            step_wall: StepWall::default(),
             events: Vec::new(),
         })
     }
@@ -342,15 +331,15 @@ impl<const D: usize> ScalarSimulation<D> {
     /// Relative ℓ² error (66)/(3.79) over all nodes against the reference, if any.
     pub fn relative_error(&self) -> Option<f64> {
         let r = self.reference?;
-        let t = self.clock.time();
-        let (num, den) = self
-            .positions()
-            .iter()
-            .zip(self.field())
-            .fold((0.0, 0.0), |(n, d), (x, v)| {
-                let e = r.value(x, t);
-                (n + (v - e).powi(2), d + e * e)
-            });
+        let t = self.run.clock.time();
+        let (num, den) =
+            self.positions()
+                .iter()
+                .zip(self.field())
+                .fold((0.0, 0.0), |(n, d), (x, v)| {
+                    let e = r.value(x, t);
+                    (n + (v - e).powi(2), d + e * e)
+                });
         Some(if den > 0.0 {
             (num / den).sqrt()
         } else {
@@ -452,7 +441,7 @@ impl<const D: usize> ScalarSimulation<D> {
     /// [`Self::euler_update`] on one row set: the Ω_w rows of the hybrid if `liquid`, else
     /// `operator`'s. The new values go to the rate buffer first (the update is Jacobi-like).
     fn euler_rows(&mut self, t: f64, liquid: bool) -> f64 {
-        let dt = self.clock.dt();
+        let dt = self.run.clock.dt();
         let (reference, kernel) = (self.reference, &self.kernel);
         let nodes = &self.discretization.nodes;
         let (positions, field) = (nodes.base.reference(), nodes.fields.get(self.field));
@@ -483,8 +472,8 @@ impl<const D: usize> ScalarSimulation<D> {
         if changed > 0 {
             self.events.push(format!(
                 "t = {:.4e} s (step {}): {changed} nodes turned liquid",
-                self.clock.next_time(),
-                self.clock.step() + 1
+                self.run.clock.next_time(),
+                self.run.clock.step() + 1
             ));
         }
     }
@@ -521,35 +510,35 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
         let mut lap = Lap::start();
         if self.scene.physics == Physics::Static {
             self.solve_static()?;
-            lap.charge(&mut self.stages, 0);
-            self.clock.advance();
+            lap.charge(&mut self.run.stages, 0);
+            self.run.clock.advance();
             return Ok(());
         }
-        let t = self.clock.time();
+        let t = self.run.clock.time();
         self.rates();
-        lap.charge(&mut self.stages, RATES);
+        lap.charge(&mut self.run.stages, RATES);
         let max_value = self.euler_update(t);
-        lap.charge(&mut self.stages, UPDATE);
-        self.hold_reference(self.clock.next_time());
-        lap.charge(&mut self.stages, HOLD);
+        lap.charge(&mut self.run.stages, UPDATE);
+        self.hold_reference(self.run.clock.next_time());
+        lap.charge(&mut self.run.stages, HOLD);
         self.change_phases();
-        lap.charge(&mut self.stages, PHASE_CHANGE);
-        self.clock.advance();
+        lap.charge(&mut self.run.stages, PHASE_CHANGE);
+        self.run.clock.advance();
         let scale = self.amplitude.max(f64::MIN_POSITIVE);
         if !max_value.is_finite() || max_value > DIVERGENCE_FACTOR * scale {
             return Err(SimError::Diverged {
-                step: self.clock.step(),
-                time: self.clock.time(),
+                step: self.run.clock.step(),
+                time: self.run.clock.time(),
                 max_value,
-                dt: self.clock.dt(),
-                stable_dt: self.stable.sharp,
+                dt: self.run.clock.dt(),
+                stable_dt: self.run.stable.sharp,
             });
         }
         Ok(())
     }
 
     fn frame(&mut self) -> Frame {
-        let t = self.clock.time();
+        let t = self.run.clock.time();
         let (positions, field) = (self.positions(), self.field());
         // The pointwise error exists only against a reference (none in corrosion scenes).
         let error: Option<Vec<f64>> = self.reference.map(|r| {
@@ -564,14 +553,8 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             .zip(self.discretization.nodes.volumes())
             .map(|(c, v)| c * v)
             .sum();
-        let mut scalars = vec![
-            ("field/integral".to_string(), integral),
-            (
-                "timing/step_wall_s".to_string(),
-                self.step_wall.per_step(self.clock.step()),
-            ),
-        ];
-        scalars.extend(self.stages.scalars());
+        let mut scalars = vec![("field/integral".to_string(), integral)];
+        scalars.extend(self.run.timing_scalars());
         let amplitude = if self.amplitude > 0.0 {
             self.amplitude
         } else {
@@ -606,7 +589,7 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
         }
         let classes = self.corrosion_frame(&mut scalars);
         Frame {
-            step: self.clock.step(),
+            step: self.run.clock.step(),
             time: t,
             dim: D,
             positions: self.positions().as_flattened().to_vec(),
@@ -624,30 +607,21 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             .as_ref()
             .map_or((0, 0), |h| (h.wls.columns.len(), h.wls.rows.len()));
         let entries = op.columns.len() + wls_entries;
-        SimInfo {
+        self.run.info(Size {
             dim: D,
             nodes: self.discretization.len(),
             bonds: entries,
-            dt: self.clock.dt(),
-            stable_dt: self.stable.sharp,
-            gershgorin_dt: self.stable.guaranteed,
-            total_steps: self.clock.total_steps(),
-            frame_every: self.frame_every,
             bytes_per_bond: 12.0,
             stencil: entries as f64 / (op.rows.len() + wls_rows).max(1) as f64,
-        }
+        })
     }
 
-    fn clock(&self) -> &Clock {
-        &self.clock
+    fn run(&self) -> &RunState {
+        &self.run
     }
 
-    fn clock_mut(&mut self) -> &mut Clock {
-        &mut self.clock
-    }
-
-    fn stages(&self) -> &Stages {
-        &self.stages
+    fn run_mut(&mut self) -> &mut RunState {
+        &mut self.run
     }
 
     fn relative_error(&self) -> Option<f64> {

@@ -131,7 +131,11 @@ mod tests {
             c.advance();
         }
         c.set_dt(4.0);
-        assert_eq!(c.total_steps(), 4 + 3, "8 of 20 s done, 12 s left in steps of 4 s");
+        assert_eq!(
+            c.total_steps(),
+            4 + 3,
+            "8 of 20 s done, 12 s left in steps of 4 s"
+        );
         while !c.done() {
             c.advance();
         }

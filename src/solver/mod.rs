@@ -14,6 +14,7 @@ pub use setup::{Integrator, StableStep};
 pub use stages::{Lap, Stages, StepWall};
 
 use crate::frame::Frame;
+use crate::scene::{Scene, SceneError};
 
 /// Static facts about a built simulation.
 #[derive(Debug, Clone)]
@@ -34,6 +35,71 @@ pub struct SimInfo {
     /// Mean nodes per updated node's stencil, the node itself included: the family (standard
     /// scheme, the papers' counts: 2m+1 in 1D, 441 for m = 12 in 2D) or the collocation set.
     pub stencil: f64,
+}
+
+/// The size of a built simulation, for its [`SimInfo`].
+#[derive(Debug, Clone, Copy)]
+pub struct Size {
+    pub dim: usize,
+    pub nodes: usize,
+    /// Directed bonds, or operator entries.
+    pub bonds: usize,
+    pub bytes_per_bond: f64,
+    pub stencil: f64,
+}
+
+/// What every simulation's run holds besides its state: the clock, the stable step it was
+/// checked against, the frame cadence, the stage timers and the wall time per step.
+#[derive(Debug, Clone)]
+pub struct RunState {
+    pub clock: Clock,
+    pub stable: StableStep,
+    pub frame_every: u64,
+    pub stages: Stages,
+    pub step_wall: StepWall,
+}
+
+impl RunState {
+    /// The run of `scene` with its stable step: Δt and its refusal, the end, the cadence, and
+    /// the integrator's named stages.
+    pub fn new(
+        scene: &Scene,
+        stable: StableStep,
+        stages: &'static [&'static str],
+    ) -> Result<RunState, SceneError> {
+        let clock = setup::clock(scene, &stable)?;
+        Ok(RunState {
+            frame_every: setup::frame_every(scene, clock.total_steps()),
+            clock,
+            stable,
+            stages: Stages::new(stages),
+            step_wall: StepWall::default(),
+        })
+    }
+
+    pub fn info(&self, size: Size) -> SimInfo {
+        SimInfo {
+            dim: size.dim,
+            nodes: size.nodes,
+            bonds: size.bonds,
+            dt: self.clock.dt(),
+            stable_dt: self.stable.sharp,
+            gershgorin_dt: self.stable.guaranteed,
+            total_steps: self.clock.total_steps(),
+            frame_every: self.frame_every,
+            bytes_per_bond: size.bytes_per_bond,
+            stencil: size.stencil,
+        }
+    }
+
+    /// The frame scalars every run has: wall time per step since the last frame, and the time
+    /// spent in each stage.
+    pub fn timing_scalars(&mut self) -> Vec<(String, f64)> {
+        let wall = self.step_wall.per_step(self.clock.step());
+        let mut scalars = vec![("timing/step_wall_s".to_string(), wall)];
+        scalars.extend(self.stages.scalars());
+        scalars
+    }
 }
 
 /// A live parameter that changes a running simulation in place.
@@ -57,9 +123,16 @@ pub trait Stepper: Send {
     fn step(&mut self) -> Result<(), SimError>;
     fn frame(&mut self) -> Frame;
     fn info(&self) -> SimInfo;
-    fn clock(&self) -> &Clock;
-    fn clock_mut(&mut self) -> &mut Clock;
-    fn stages(&self) -> &Stages;
+    fn run(&self) -> &RunState;
+    fn run_mut(&mut self) -> &mut RunState;
+
+    fn clock(&self) -> &Clock {
+        &self.run().clock
+    }
+
+    fn stages(&self) -> &Stages {
+        &self.run().stages
+    }
 
     fn steps_done(&self) -> u64 {
         self.clock().step()
@@ -71,7 +144,7 @@ pub trait Stepper: Send {
 
     /// A new Δt from the next step on; the end time is kept.
     fn set_dt(&mut self, dt: f64) {
-        self.clock_mut().set_dt(dt);
+        self.run_mut().clock.set_dt(dt);
     }
 
     /// Changes a live parameter in place; an error (with the reason) where the scene has no
