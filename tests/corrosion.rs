@@ -1,5 +1,5 @@
-//! Bi-material corrosion (thesis §1.6 / §3.4.1): bond classes by phase, irreversible
-//! solid → liquid change below C_sat; `corrosion-1d`.
+//! Bi-material corrosion (thesis §2.3.3 / §3.4.1; seed-thesis-ch2-3 §1.6): bond classes by phase,
+//! irreversible solid → liquid change below C_sat; `corrosion-1d`.
 
 use peridyn::scene::Scene;
 use peridyn::sim;
@@ -56,7 +56,7 @@ fn time_to(variant: Option<&str>, loss: f64) -> f64 {
 
 /// The thesis (Fig. 3.23): the coarse model's solid vanishes earlier than the fine one's. That
 /// holds for the original scheme (β = 1), whose coarse grid (m = 2) overestimates the second
-/// moment by (m + 1)/m = 1.5; with β (28) the quadrature is exact at integer m and the coarse
+/// moment by (m + 1)/m = 1.5; with β (3.2) the quadrature is exact at integer m and the coarse
 /// front runs later instead (each coarse node is a larger chunk of solid).
 #[test]
 fn coarse_grid_against_fine() {
@@ -146,7 +146,7 @@ fn largest_difference(
 }
 
 /// The full scaled scene (195 k nodes, m = 6) at Δt = 1 s to 3000 s: minutes, so run on demand
-/// (`cargo test --release --test corrosion -- --ignored`); the figure is in the README.
+/// (`cargo test --release --test corrosion -- --ignored`); the figure is in docs/results.md.
 #[test]
 #[ignore]
 fn corrosion_3d_full_size_hybrid_volume_loss_follows_the_standard_scheme() {

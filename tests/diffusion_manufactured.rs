@@ -1,4 +1,4 @@
-//! 2D transient PD diffusion with a manufactured solution (seed-004 §4.2, thesis §3.2.6),
+//! 2D transient PD diffusion with a manufactured solution (seed-004 Example 2, thesis §3.2.6),
 //! through the `diffusion-2d-manufactured` preset: (−0.5, 0.5)², 40 × 40 nodes, κ = 1, q = 2,
 //! ω0, Dirichlet layer of width δ, forward Euler with Δt = 1e-5 to T = 0.1.
 

@@ -1,4 +1,4 @@
-//! The hybrid configuration (thesis §3.3, seed-003 §5): one grid, Ω_s standard (PMB with
+//! The hybrid configuration (thesis §3.3, seed-thesis-ch2-3 §5): one grid, Ω_s standard (PMB with
 //! failure) and Ω_w WLS-2 (linearized), Ω_s grown where bonds reach χ·s0.
 
 use peridyn::adapt::hybrid::Hybrid;

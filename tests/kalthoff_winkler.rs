@@ -1,5 +1,6 @@
 //! Kalthoff–Winkler, `medium` variant (Δx = 0.5 mm, m = 4): the cracks leave the pre-crack
-//! tips at 60°–75° (experiment ≈ 70°, the seeds' simulations 61°–68°).
+//! tips at 60°–75° (experiment ≈ 70° per zeng2024, ≈ 68° per thesis §3.3.1; zeng2024 Table 8
+//! simulations 60.88°–66.06°).
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;

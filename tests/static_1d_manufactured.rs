@@ -1,4 +1,4 @@
-//! 1D static PD elasticity with a manufactured solution (seed-004 §4.1, thesis §3.2.5), run
+//! 1D static PD elasticity with a manufactured solution (seed-004 Example 1, thesis §3.2.5), run
 //! through the `static-1d-manufactured` preset and `peridyn sweep`'s runner: Ω = (−100, 100),
 //! E = 1, c = 2E/δ², ω0, u = sin(x/10), Dirichlet collars of width δ outside Ω, one banded
 //! solve. Standard scheme against WLS-2/4/6 (5/11/13 collocation nodes).
@@ -85,7 +85,7 @@ fn m_convergence() {
 
 /// "WLS-2 on a coarse grid beats the standard scheme with 67 family nodes" holds against the
 /// original standard scheme (β = 1, variant `no-beta`), whose error falls only as 1/m. With β
-/// (28), the standard scheme at m = 33 is 500× better than WLS-2: WLS-2 is E u'' locally and
+/// (3.2), the standard scheme at m = 33 is 500× better than WLS-2: WLS-2 is E u'' locally and
 /// misses the nonlocal c δ⁴ u⁗/48 term (≈ 1 % at δ = 6).
 #[test]
 fn coarse_wls2_against_the_standard_scheme_with_67_family_nodes() {
@@ -103,7 +103,7 @@ fn coarse_wls2_against_the_standard_scheme_with_67_family_nodes() {
     assert!(with_beta[0].error.unwrap() < wls2_coarse / 100.0);
 }
 
-/// δ = 8, 4, 2, 1, 0.5, 0.25 at m = 12 (variant `delta`, the local problem (3.76)).
+/// δ = 8, 4, 2, 1, 0.5, 0.25 at m = 12 (variant `delta`, the local problem (3.75)–(3.76)).
 const DELTA_SPACINGS: [f64; 6] = [
     8.0 / 12.0,
     4.0 / 12.0,
@@ -115,9 +115,9 @@ const DELTA_SPACINGS: [f64; 6] = [
 
 /// Every WLS error falls monotonically as δ shrinks (asymptotic compatibility). The standard
 /// scheme of the papers (β = 1) does not: its error grows, then stalls at ≈ 9 % (its discrete
-/// second moment is m(m+1)/2 Δx², 1/m too large). With β (28) at integer m the 1D quadrature
+/// second moment is m(m+1)/2 Δx², 1/m too large). With β (3.2) at integer m the 1D quadrature
 /// of the second moment is exact and it converges at second order — not what the thesis
-/// reports, stated in the README.
+/// reports, stated in docs/results.md.
 #[test]
 fn delta_convergence() {
     let rows = sweep(Some("delta"), &[], &DELTA_SPACINGS, &ALL);

@@ -1,4 +1,4 @@
-//! WLS elasticity operators (seed-004 §2.4–2.5): the assembled bond-based operator equals
+//! WLS elasticity operators (seed-004 §2.3, §2.5): the assembled bond-based operator equals
 //! Navier's on quadratic fields (2D, ν = 1/3 plane stress), and the linearized LPS operator
 //! (two passes: nodal dilatation, then I + J) gives G∇²u + (K + G/3)∇θ (3D).
 

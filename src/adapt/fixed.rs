@@ -1,8 +1,8 @@
-//! The fixed hybrid of a corrosion scene (thesis §3.3.2; seed-003 §5, §8.5): Ω_s — the solid
-//! and the liquid within `band` of it, the zone where the phases interact — runs the standard
-//! scheme with bond classes; Ω_w — the far liquid — runs WLS-2 diffusion (§3.4) with κ_liq over
-//! its collocation nodes, wherever they lie (no ghost layer). With band ≥ δ an Ω_w node has no
-//! solid within its horizon, and the solid only shrinks, so every bond it could see is
+//! The fixed hybrid of a corrosion scene (thesis §3.3.2; seed-thesis-ch2-3 §5, §8.5): Ω_s — the
+//! solid and the liquid within `band` of it, the zone where the phases interact — runs the standard
+//! scheme with bond classes; Ω_w — the far liquid — runs WLS-2 diffusion (seed-thesis-ch2-3 §3.4)
+//! with κ_liq over its collocation nodes, wherever they lie (no ghost layer). With band ≥ δ an Ω_w
+//! node has no solid within its horizon, and the solid only shrinks, so every bond it could see is
 //! liquid–liquid for the whole run: the invariant "no phase change in Ω_w" holds by
 //! construction and is still counted in every frame.
 

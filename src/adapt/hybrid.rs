@@ -1,13 +1,13 @@
-//! The hybrid configuration (thesis §3.3, seed-003 §5, seed-004 §4): one grid, a per-node
+//! The hybrid configuration (thesis §3.3, seed-thesis-ch2-3 §5, seed-004 §4): one grid, a per-node
 //! mask. Ω_s nodes run the standard scheme (nonlinear PMB with failure) over their whole
 //! family; Ω_w nodes run WLS-2 (linearized, precomputed blocks K_ij = L̄ Q̄_i) over their
 //! collocation nodes, wherever those lie. No ghost layer, no interpolation.
 //!
 //! Ω_s starts as a band around boundaries and pre-cracks. In the adaptive configuration it
 //! only grows: a bond is critical when its stretch reaches χ·s0 — (3.80) without the upper
-//! bound s ≤ s0, per the errata note (a bond that jumps past s0 in one step is still caught) —
-//! and then every node of H_i ∪ H_j switches to the standard scheme. The check runs on the
-//! positions u^{n+1} right after the drift, before the force pass breaks any bond: the thesis's
+//! bound s ≤ s0, per seed-thesis-ch2-3 erratum 15 (a bond that jumps past s0 in one step is still
+//! caught) — and then every node of H_i ∪ H_j switches to the standard scheme. The check runs on
+//! the positions u^{n+1} right after the drift, before the force pass breaks any bond: the thesis's
 //! "end of step n, before the critical zone is evaluated for damage".
 
 use rayon::prelude::*;

@@ -1,6 +1,6 @@
 //! The phase change of corrosion scenes, run between steps (thesis (2.79), irreversible per
-//! the errata): solid nodes whose concentration dropped below C_sat turn liquid; nothing turns
-//! back into solid.
+//! seed-thesis-ch2-3 erratum 18): solid nodes whose concentration dropped below C_sat turn liquid;
+//! nothing turns back into solid.
 
 use rayon::prelude::*;
 

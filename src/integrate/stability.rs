@@ -5,7 +5,7 @@
 //! 3D a vector bond operator's λ_max is well below the Gershgorin value, so (3.8) is
 //! conservative (by ≈ 1.5–1.8× in 2D, measured). [derived] The sharp limit 2/√λ_max is
 //! estimated with a power iteration on the operator itself, which also serves operators that
-//! are not symmetric (the WLS scheme, note §2.2).
+//! are not symmetric (the WLS scheme, seed-thesis-ch2-3 §2.2).
 
 use crate::discretization::grid::SplitMix64;
 

@@ -1,9 +1,9 @@
-//! Bi-material PD corrosion (thesis (2.48)–(2.49), phase variable (2.79); seed-003 §1.6):
+//! Bi-material PD corrosion (thesis (2.48)–(2.49), phase variable (2.79); seed-thesis-ch2-3 §1.6):
 //! diffusion whose bond micro-diffusivity depends on the phases of its two ends — κ_liq for
 //! liquid–liquid, κ_int for solid–liquid, no flux for solid–solid — and a solid node turns
-//! liquid when its concentration drops below C_sat (irreversibly: the errata's reading of
-//! (2.79)). The law gives the bond diffusivities; the scheme does the sum (`scheme`) and the
-//! phase change runs between steps (`adapt::phase`).
+//! liquid when its concentration drops below C_sat (irreversibly: seed-thesis-ch2-3 erratum 18's
+//! reading of (2.79)). The law gives the bond diffusivities; the scheme does the sum (`scheme`) and
+//! the phase change runs between steps (`adapt::phase`).
 
 /// κ_liq, κ_int and C_sat of a corrosion scene.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -5,7 +5,8 @@ use super::pmb::{Influence, influence};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DiffusionKernel {
     pub diffusivity: f64,
-    /// Kernel exponent q (errata 7: the p, q and s of (2.49), (2.72), (2.77) are all q).
+    /// Kernel exponent q (seed-thesis-ch2-3 erratum 7: the p, q and s of (2.49), (2.72),
+    /// (2.77) are all q).
     pub exponent: f64,
     pub influence: Influence,
     pub horizon: f64,

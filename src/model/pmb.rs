@@ -2,7 +2,7 @@
 //!
 //! Micromodulus c and critical stretch s0 follow the tables of seed-thesis-ch2-3 §1.3: the thesis
 //! prints plane stress only ((2.31), (2.35)); the plane-strain, 3D and 1D rows are the note's
-//! [derived] rows (errata item 13: KW is plane strain, so both are exposed).
+//! [derived] rows (seed-thesis-ch2-3 erratum 13: KW is plane strain, so both are exposed).
 
 use std::f64::consts::PI;
 
@@ -33,7 +33,7 @@ pub enum Plane {
 /// The bond stiffness as a preset gives it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Stiffness {
-    /// Young's modulus E: the micromodulus follows from the tables of §1.3.
+    /// Young's modulus E: the micromodulus follows from the tables of seed-thesis-ch2-3 §1.3.
     YoungsModulus(f64),
     /// The micromodulus c itself.
     Micromodulus(f64),
@@ -44,7 +44,7 @@ pub enum Stiffness {
 pub enum Failure {
     /// No bond breaks.
     None,
-    /// Fracture energy G0: the critical stretch follows from (2.35) and §1.3.
+    /// Fracture energy G0: the critical stretch follows from (2.35) and seed-thesis-ch2-3 §1.3.
     FractureEnergy(f64),
     /// The critical stretch s0 itself.
     CriticalStretch(f64),
@@ -59,7 +59,7 @@ pub struct PmbConstants {
     pub plane: Plane,
 }
 
-/// Micromodulus c from Young's modulus, (2.31) and the derived rows of §1.3.
+/// Micromodulus c from Young's modulus, (2.31) and the derived rows of seed-thesis-ch2-3 §1.3.
 pub fn micromodulus(e: f64, horizon: f64, dim: usize, plane: Plane, influence: Influence) -> f64 {
     let d = horizon;
     let omega1 = influence == Influence::Linear;
@@ -77,7 +77,7 @@ pub fn micromodulus(e: f64, horizon: f64, dim: usize, plane: Plane, influence: I
 }
 
 /// Critical stretch s0 from the fracture energy G0, written in terms of c so it also holds when
-/// the preset overrides c: (2.35) and the [derived] rows of §1.3.
+/// the preset overrides c: (2.35) and the [derived] rows of seed-thesis-ch2-3 §1.3.
 pub fn critical_stretch(g0: f64, c: f64, horizon: f64, dim: usize, influence: Influence) -> f64 {
     let d = horizon;
     let omega1 = influence == Influence::Linear;
@@ -113,7 +113,7 @@ mod tests {
 
     #[test]
     fn kalthoff_winkler_critical_stretch_matches_the_note() {
-        // §8.3: δ = 2 mm, E = 190 GPa, G0 = 22 170 J/m².
+        // seed-thesis-ch2-3 §8.3: δ = 2 mm, E = 190 GPa, G0 = 22 170 J/m².
         let (e, g0, d) = (190e9, 22170.0, 2e-3);
         let c = micromodulus(e, d, 2, Plane::Strain, Influence::Constant);
         let s0 = critical_stretch(g0, c, d, 2, Influence::Constant);
@@ -165,7 +165,8 @@ pub struct PmbLaw {
 
 impl PmbLaw {
     /// The law of a material with horizon δ in `dim` dimensions: c from E by (2.31) and the
-    /// rows of §1.3 (or as given), s0 from G0 by (2.35) (or as given), +∞ without failure.
+    /// rows of seed-thesis-ch2-3 §1.3 (or as given), s0 from G0 by (2.35) (or as given), +∞
+    /// without failure.
     pub fn new(constants: &PmbConstants, horizon: f64, dim: usize) -> PmbLaw {
         let c = constants;
         let micromodulus = match c.stiffness {

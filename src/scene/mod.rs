@@ -85,7 +85,7 @@ pub struct CorrosionSpec {
     pub saturation: f64,
 }
 
-/// χ where a preset does not set it (the thesis's switching margin, §8.3).
+/// χ where a preset does not set it (the thesis's switching margin, seed-thesis-ch2-3 §8.3).
 pub const DEFAULT_CHI: f64 = 0.95;
 
 /// The one check of the switching margin χ of (3.80), wherever it is set (preset, command,

@@ -1,5 +1,5 @@
-//! Manufactured solutions (seed-004 §4, thesis §3.2.5–3.2.6): the exact field, and the body
-//! force or source that makes it a solution of the PD problem (or of its local limit).
+//! Manufactured solutions (seed-004 Examples 1–2, thesis §3.2.5–3.2.6): the exact field, and the
+//! body force or source that makes it a solution of the PD problem (or of its local limit).
 
 use std::f64::consts::PI;
 
@@ -90,9 +90,10 @@ impl Reference {
                 // b / sin(x / ℓ):
                 let factor = match operator {
                     // ∫_{-δ}^{δ} c/|ξ| (sin((x+ξ)/ℓ) − sin(x/ℓ)) dξ = −2c Cin(δ/ℓ) sin(x/ℓ),
-                    // (3.74) with γ (erratum 4: not e): Cin(a) = γ − Ci(a) + ln a.
+                    // (3.74) with γ (seed-thesis-ch2-3 erratum 4: not e):
+                    // Cin(a) = γ − Ci(a) + ln a.
                     ReferenceOperator::Nonlocal => 2.0 * c * cin(horizon / length),
-                    // Local limit (3.76): 0 = E u'' + b, E = c δ²/2 in 1D.
+                    // Local limit (3.75)–(3.76): 0 = E u'' + b, E = c δ²/2 in 1D.
                     ReferenceOperator::Local => c * horizon * horizon / 2.0 / (length * length),
                 };
                 factor * (x[0] / length).sin()

@@ -150,20 +150,20 @@ pub enum Physics {
     Dynamics,
     /// Static linear elasticity, one global solve (1D).
     Static,
-    /// Transient PD diffusion with forward Euler (3.4)/(3.30).
+    /// Transient PD diffusion with forward Euler (3.4)/(3.10).
     Diffusion,
     /// Bi-material corrosion (2.48)–(2.49), (2.79): diffusion with bond classes by phase and
     /// an irreversible solid → liquid change below the saturation concentration.
     Corrosion,
 }
 
-/// Manufactured solutions of seed-004 §4 (thesis §3.2.5–3.2.6).
+/// Manufactured solutions of seed-004 Examples 1–2 (thesis §3.2.5–3.2.6).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "solution", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum ReferenceSpec {
     /// 1D static: u = sin(x / length). The body force balances either the PD operator
-    /// (`operator = "nonlocal"`, (3.74) with γ, erratum 4) or its local limit E u''
-    /// (`"local"`, the δ-convergence problem (3.76)).
+    /// (`operator = "nonlocal"`, (3.74) with γ, seed-thesis-ch2-3 erratum 4) or its local limit
+    /// E u'' (`"local"`, the δ-convergence problem (3.75)–(3.76)).
     #[serde(rename = "sine-1d")]
     Sine1d {
         #[serde(default = "ten")]
@@ -217,10 +217,10 @@ pub enum FamilyRadius {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum SchemeKind {
-    /// Meshfree particle sums with β partial volumes (3.3)/(3.4).
+    /// Meshfree particle sums with β partial volumes (3.1)/(3.4).
     #[default]
     Standard,
-    /// WLS collocation with a C² basis (§3.3–3.5).
+    /// WLS collocation with a C² basis (thesis §3.2; seed-thesis-ch2-3 §3).
     #[serde(rename = "wls-2")]
     Wls2,
     #[serde(rename = "wls-4")]
@@ -228,7 +228,7 @@ pub enum SchemeKind {
     #[serde(rename = "wls-6")]
     Wls6,
     /// Ω_s (standard, nonlinear) in a fixed band around boundaries and pre-cracks, Ω_w (WLS-2,
-    /// linearized) elsewhere (§5).
+    /// linearized) elsewhere (thesis §3.3; seed-thesis-ch2-3 §5).
     HybridFixed,
     /// As `hybrid-fixed`, and Ω_s grows where bonds reach χ·s0 (3.80).
     HybridAdaptive,
@@ -286,7 +286,7 @@ pub struct Material {
     pub model: ModelKind,
     /// Mass density ρ (dynamics only).
     pub density: Option<Quantity>,
-    /// Young's modulus E (gives the micromodulus c by the tables of §1.3).
+    /// Young's modulus E (gives the micromodulus c by the tables of seed-thesis-ch2-3 §1.3).
     pub youngs_modulus: Option<Quantity>,
     /// Micromodulus c, overriding the one derived from E.
     pub micromodulus: Option<Quantity>,
@@ -299,9 +299,9 @@ pub struct Material {
     /// 2D only: plane stress or plane strain.
     #[serde(default)]
     pub plane: Plane,
-    /// Diffusion only: κ of the kernel κ ω / ‖ξ‖^q (2.41).
+    /// Diffusion only: κ of the kernel κ ω / ‖ξ‖^q (2.42).
     pub diffusivity: Option<Quantity>,
-    /// Diffusion only: the kernel exponent q (errata 7).
+    /// Diffusion only: the kernel exponent q (seed-thesis-ch2-3 erratum 7).
     pub kernel_exponent: Option<f64>,
     /// Corrosion: κ_int of solid–liquid bonds ("micro-dissolvability"); `diffusivity` is κ_liq
     /// of liquid–liquid bonds; solid–solid bonds carry no flux.
@@ -338,7 +338,7 @@ pub struct BoundaryLayer {
     /// "2 mm", "3 dx" or "1 horizon".
     pub thickness: Option<Measure>,
     /// The layer lies outside the body's `face` (the body is extended by `thickness`), as the
-    /// Dirichlet collars of seed-004 §4.1. Needs a box geometry.
+    /// Dirichlet collars of seed-thesis-ch2-3 §4.1 (thesis §3.2.5). Needs a box geometry.
     #[serde(default)]
     pub outside: bool,
     /// Diffusion and static scenes: the field is held at the reference solution.

@@ -114,9 +114,10 @@ impl ScalarOperator {
 pub type Row<T> = (Vec<u32>, Vec<T>);
 
 /// A linear operator on a vector node field (D components per node), as sparse rows of D × D
-/// blocks: out_i = Σ_j K_ij values_j. The WLS elasticity operator K_ij = L̄ Q̄_i (§3.5).
-/// Rows whose collocation geometry is the same (a uniform lattice away from its boundaries)
-/// share one block set ("stencil"), so a row costs 4 bytes per entry to stream, not 36.
+/// blocks: out_i = Σ_j K_ij values_j. The WLS elasticity operator K_ij = L̄ Q̄_i
+/// (seed-thesis-ch2-3 §3.5). Rows whose collocation geometry is the same (a uniform lattice away
+/// from its boundaries) share one block set ("stencil"), so a row costs 4 bytes per entry to
+/// stream, not 36.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VectorOperator<const D: usize> {
     pub rows: Vec<u32>,

@@ -99,7 +99,8 @@ impl<const D: usize> Standard<'_, D> {
     }
 
     /// As `forces`, skipping the rows whose mask entry is `skipped` (the hybrid scheme's Ω_w
-    /// nodes, §5): their terms are left as they are and their bonds are never evaluated.
+    /// nodes, seed-thesis-ch2-3 §5): their terms are left as they are and their bonds are
+    /// never evaluated.
     pub fn forces_masked<M: RowMask>(
         &self,
         positions: &[[f64; D]],

@@ -1,9 +1,10 @@
 //! Meshfree WLS collocation scheme (thesis §3.2; seed-thesis-ch2-3 §3, seed-004 §2): a local
 //! polynomial fit over a few collocation nodes, with the PD integral over the full ball done
-//! analytically (the L operators of §3.5).
+//! analytically (the L operators of seed-thesis-ch2-3 §3.5).
 //!
-//! Errata followed: (3.28) uses p(x_j − x_i) in A (erratum 1); the weight (3.26) is evaluated
-//! in its stable form; the fit is solved in coordinates scaled by δ, with L scaled to match.
+//! Errata followed: (3.28) uses p(x_j − x_i) in A (seed-thesis-ch2-3 erratum 1); the weight (3.26)
+//! is evaluated in its stable form; the fit is solved in coordinates scaled by δ, with L scaled to
+//! match.
 
 use nalgebra::{DMatrix, DVector};
 
@@ -71,7 +72,7 @@ pub fn weight(d: f64, r_max: f64) -> f64 {
     ((-16.0 * d * d / (r_max * r_max)).exp() - e64) / (1.0 - e64)
 }
 
-/// Radial moment R(s) = ∫_0^δ ω(r) r^s dr (§3.5), s > −1.
+/// Radial moment R(s) = ∫_0^δ ω(r) r^s dr (seed-thesis-ch2-3 §3.5), s > −1.
 pub fn radial_moment(s: f64, horizon: f64, influence: Influence) -> f64 {
     match influence {
         Influence::Constant => horizon.powf(s + 1.0) / (s + 1.0),
@@ -93,7 +94,7 @@ fn gamma_half(m: u32) -> f64 {
     g
 }
 
-/// Angular moment S(β) = ∫ over the unit sphere of θ^β (§3.5): 2 Π Γ((β_i+1)/2) /
+/// Angular moment S(β) = ∫ over the unit sphere of θ^β (seed-thesis-ch2-3 §3.5): 2 Π Γ((β_i+1)/2) /
 /// Γ((|β|+n_d)/2) if every β_i is even, else 0; in 1D, 2 for even β.
 pub fn angular_moment(beta: [u32; 3], dim: usize) -> f64 {
     if beta[..dim].iter().any(|b| b % 2 == 1) {
@@ -107,7 +108,8 @@ pub fn angular_moment(beta: [u32; 3], dim: usize) -> f64 {
         / gamma_half(total + dim as u32)
 }
 
-/// One L entry per monomial of degree n ≥ 1; the constant monomial gives 0 (§3.5).
+/// One L entry per monomial of degree n ≥ 1; the constant monomial gives 0
+/// (seed-thesis-ch2-3 §3.5).
 fn per_monomial(basis: &Basis, entry: impl Fn([u32; 3], u32) -> f64) -> Vec<f64> {
     basis
         .exponents
@@ -136,7 +138,7 @@ pub fn diffusion_l(
 }
 
 /// Blocks [k][l][α] = factor · R(n + n_d − 1 − p) S(α + e_k + e_l) of a pair kernel
-/// factor · ω ξ⊗ξ/‖ξ‖^(1+p) acting on (u' − u) (§3.5).
+/// factor · ω ξ⊗ξ/‖ξ‖^(1+p) acting on (u' − u) (seed-thesis-ch2-3 §3.5).
 fn pair_l(
     basis: &Basis,
     factor: f64,
@@ -170,9 +172,10 @@ pub fn bond_l(basis: &Basis, c: f64, horizon: f64, influence: Influence) -> Vec<
     pair_l(basis, c, 1.0, horizon, influence)
 }
 
-/// Collocation set of a node (§3.1): for each point of an auxiliary grid of spacing δ/k_aux
-/// centred at the node and inside the ball, the nearest family node (the node itself
-/// included) not already chosen; ties go to the lower index. The node itself comes first.
+/// Collocation set of a node (seed-thesis-ch2-3 §3.1, seed-004 §2.2): for each point of an
+/// auxiliary grid of spacing δ/k_aux centred at the node and inside the ball, the nearest family
+/// node (the node itself included) not already chosen; ties go to the lower index. The node itself
+/// comes first.
 pub fn collocation_set<const D: usize>(
     i: usize,
     positions: &[[f64; D]],
@@ -489,7 +492,7 @@ fn fitted_rows<const D: usize, T: Send>(
         .collect()
 }
 
-/// Per-node weight rows of the WLS diffusion operator (§3.4): row of node i holds
+/// Per-node weight rows of the WLS diffusion operator (seed-thesis-ch2-3 §3.4): row of node i holds
 /// w_ij = (L_C Q_i)_j for its collocation nodes j (seed-004 §2.7 step 2.4).
 pub fn diffusion_operator<const D: usize>(
     rows: &[u32],
@@ -507,9 +510,10 @@ pub fn diffusion_operator<const D: usize>(
     Ok(ScalarOperator::from_rows(rows, blocks))
 }
 
-/// Per-node D × D blocks K_ij = L̄ Q̄_i of a WLS elasticity operator (§3.5, seed-004 §2.7):
-/// `l[k][l][α]` as returned by `bond_l` or `lps_shear_l`. Rows whose collocation sets have the
-/// same geometry (relative offsets equal to 10⁻⁹ δ) are fitted once and share their blocks.
+/// Per-node D × D blocks K_ij = L̄ Q̄_i of a WLS elasticity operator (seed-thesis-ch2-3 §3.5,
+/// seed-004 §2.7): `l[k][l][α]` as returned by `bond_l` or `lps_shear_l`. Rows whose collocation
+/// sets have the same geometry (relative offsets equal to 10⁻⁹ δ) are fitted once and share their
+/// blocks.
 pub fn elasticity_operator<const D: usize>(
     rows: &[u32],
     positions: &[[f64; D]],
@@ -614,7 +618,7 @@ pub fn weighted_volume(dim: usize, horizon: f64, influence: Influence) -> f64 {
 }
 
 /// L_J of the linearized LPS shear term J = ∫ 30G/m̄ ω ξ⊗ξ/‖ξ‖² (u' − u) dV (seed-004 §2.5,
-/// seed-003 (3.51)): entry [k][l][α] = 30G/m̄ R(n + n_d − 1) S(α + e_k + e_l) — "(51) with
+/// thesis (3.51)): entry [k][l][α] = 30G/m̄ R(n + n_d − 1) S(α + e_k + e_l) — "seed-004 (51) with
 /// λ → 6G" (u = (x², 0, 0) gives 6G).
 pub fn lps_shear_l(
     basis: &Basis,
@@ -627,8 +631,8 @@ pub fn lps_shear_l(
 }
 
 /// L_θ of the linearized dilatation θ = 3/m̄ ∫ ω ξ·(u' − u) dV: entry [l][α] =
-/// 3/m̄ R(n + n_d) S(α + e_l). With the 3/m̄ prefactor (seed-004 §2.5 erratum) the C² rows
-/// are exactly 1 at the linear monomials: θ = a_x + a_y + a_z.
+/// 3/m̄ R(n + n_d) S(α + e_l). With the 3/m̄ prefactor (seed-thesis-ch2-3 erratum 3; seed-004 §2.5)
+/// the C² rows are exactly 1 at the linear monomials: θ = a_x + a_y + a_z.
 pub fn lps_dilatation_l(basis: &Basis, horizon: f64, influence: Influence) -> Vec<Vec<f64>> {
     let d = basis.dim;
     let factor = 3.0 / weighted_volume(d, horizon, influence);
@@ -646,8 +650,8 @@ pub fn lps_dilatation_l(basis: &Basis, horizon: f64, influence: Influence) -> Ve
 }
 
 /// L_I of the dilatation term I = ∫ (3K − 5G)/m̄ ω (θ + θ') ξ dV fitted on the nodal θ
-/// (seed-004 §2.5; erratum: (3.51)'s first term reads L_I Q_i Θ_i): entry [k][α] =
-/// (3K − 5G)/m̄ R(n + n_d) S(α + e_k), = (3K − 5G)/3 at α = e_k.
+/// (seed-004 §2.5; seed-thesis-ch2-3 erratum 2: (3.51)'s first term reads L_I Q_i Θ_i): entry
+/// [k][α] = (3K − 5G)/m̄ R(n + n_d) S(α + e_k), = (3K − 5G)/3 at α = e_k.
 pub fn lps_dilatation_force_l(
     basis: &Basis,
     bulk_modulus: f64,
@@ -1022,7 +1026,8 @@ mod tests {
     }
 
     /// On the interior of a perturbed 2D lattice, the assembled diffusion operator applied to
-    /// C = x² + 3y² gives L_C·a = λ_C2 (1 + 3) with λ_C2 = π κ δ^{4−q}/(4−q) (§3.4, 2D).
+    /// C = x² + 3y² gives L_C·a = λ_C2 (1 + 3) with λ_C2 = π κ δ^{4−q}/(4−q)
+    /// (seed-thesis-ch2-3 §3.4, 2D).
     #[test]
     fn assembled_diffusion_operator_on_a_quadratic() {
         let m = 4usize;

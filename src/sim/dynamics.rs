@@ -1,7 +1,8 @@
 //! Elastodynamics with bond failure: velocity-Verlet (thesis (3.5)–(3.6)) over the standard
-//! bond sums (3.1) with the PMB law (2.33)–(2.34), optionally the hybrid configuration (§3.3)
-//! switching nodes from WLS to the standard scheme between steps. Runs `step()` as named,
-//! timed stages and emits plain-data `Frame`s; it knows nothing of viewers or user interfaces.
+//! bond sums (3.1) with the PMB law (2.33)–(2.34), optionally the hybrid configuration
+//! (thesis §3.3) switching nodes from WLS to the standard scheme between steps. Runs `step()` as
+//! named, timed stages and emits plain-data `Frame`s; it knows nothing of viewers or user
+//! interfaces.
 
 use rayon::prelude::*;
 
@@ -376,7 +377,7 @@ impl<const D: usize> DynamicSimulation<D> {
 
     /// ü = (f + b)/ρ per node, Ω_w nodes taking their WLS force (their `terms` are left
     /// alone: nothing reads an Ω_w node's bond-loop terms). With `kick = Some(Δt)` the second
-    /// half kick (3.6) runs in the same pass; returns the largest squared speed then
+    /// half kick (3.5) runs in the same pass; returns the largest squared speed then
     /// (NaN-propagating), 0 otherwise.
     fn accelerate(&mut self, kick: Option<f64>) -> f64 {
         let inv_rho = 1.0 / self.density;
@@ -575,7 +576,8 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
             verlet::drift(positions, velocities, dt);
         }
         lap.charge(&mut self.run.stages, KICK_DRIFT);
-        // Switch before the force pass evaluates damage on u^{n+1} (§5 step 4–5).
+        // Switch before the force pass evaluates damage on u^{n+1}
+        // (seed-thesis-ch2-3 §5 steps 4–5).
         if let Some(h) = self.hybrid.as_mut() {
             let d = &self.discretization;
             h.check(

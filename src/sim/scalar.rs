@@ -1,9 +1,10 @@
-//! Scalar-field simulations: a static linear solve (1D elasticity, seed-004 §4.1) or transient
-//! PD diffusion with forward Euler (31) (§4.2), on either scheme, and bi-material corrosion
-//! (thesis §2.4) with its phase change, optionally on the fixed hybrid. The field is held at
-//! the reference solution in `hold_reference` layers (or at a value in `hold_value` layers);
-//! frames carry the field and its pointwise error against the reference, and the relative ℓ²
-//! error (66)/(3.79).
+//! Scalar-field simulations: a static linear solve (1D elasticity, thesis §3.2.5; seed-004
+//! Example 1) or transient PD diffusion with forward Euler (3.10) (thesis §3.2.6; seed-004
+//! Example 2), on either scheme, and bi-material corrosion (thesis §2.3.3; seed-thesis-ch2-3
+//! §1.6) with its phase change, optionally on the fixed hybrid. The field is held at the
+//! reference solution in `hold_reference` layers (or at a value in `hold_value` layers); frames
+//! carry the field and its pointwise error against the reference, and the relative ℓ² error
+//! (3.79) (seed-004 (66)).
 
 use rayon::prelude::*;
 
@@ -89,7 +90,7 @@ fn kernel(scene: &Scene, dim: usize) -> DiffusionKernel {
 }
 
 /// Assembles the scheme's operator with `kernel` on the rows `free` (standard (3.4) or WLS
-/// §3.4).
+/// seed-thesis-ch2-3 §3.4).
 pub fn assemble<const D: usize>(
     scene: &Scene,
     positions: &[[f64; D]],
@@ -99,7 +100,8 @@ pub fn assemble<const D: usize>(
     free: &[u32],
 ) -> Result<ScalarOperator, String> {
     match scene.scheme.kind.wls_order() {
-        // Identical cells and nominal β, also on a perturbed grid (seed-004 §4.2).
+        // Identical cells and nominal β, also on a perturbed grid
+        // (seed-004 Example 2; seed-thesis-ch2-3 §4.2).
         None => Ok(standard::diffusion_operator::<D>(
             free,
             volumes,
@@ -328,7 +330,7 @@ impl<const D: usize> ScalarSimulation<D> {
         Some(self.discretization.nodes.fields.get(c.phase))
     }
 
-    /// Relative ℓ² error (66)/(3.79) over all nodes against the reference, if any.
+    /// Relative ℓ² error (3.79) (seed-004 (66)) over all nodes against the reference, if any.
     pub fn relative_error(&self) -> Option<f64> {
         let r = self.reference?;
         let t = self.run.clock.time();
@@ -419,7 +421,7 @@ impl<const D: usize> ScalarSimulation<D> {
         }
     }
 
-    /// Forward Euler (31): C⁺ = C + Δt (L C + S) on the free nodes (both schemes' rows of a
+    /// Forward Euler (3.10): C⁺ = C + Δt (L C + S) on the free nodes (both schemes' rows of a
     /// hybrid), into the rate buffers, then written to the field; returns max |C⁺|.
     fn euler_update(&mut self, t: f64) -> f64 {
         let mut updated = self.euler_rows(t, false);
