@@ -30,9 +30,9 @@ Xvfb :99 -screen 0 1280x800x24 -nolisten tcp >/dev/null 2>&1 &
 xvfb=$!
 sleep 1
 mkdir -p "$work/xdg" && chmod 700 "$work/xdg"
-# The viewer exits with code 102 after writing the picture: check the file, not the code.
-python3 scripts/viewer_blueprint.py "$work/peridyn.rbl"
-DISPLAY=:99 XDG_RUNTIME_DIR="$work/xdg" rerun "$work/kw.rrd" "$work/peridyn.rbl" --window-size 1200x760 \
+# The recording carries its own first view (src/record/blueprint.rs). The viewer exits with
+# code 102 after writing the picture: check the file, not the code.
+DISPLAY=:99 XDG_RUNTIME_DIR="$work/xdg" rerun "$work/kw.rrd" --window-size 1200x760 \
     --screenshot-to screenshots/rerun-kalthoff-winkler.png >/dev/null 2>&1 || true
 test -s screenshots/rerun-kalthoff-winkler.png
 echo "screenshots/ updated"

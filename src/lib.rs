@@ -11,6 +11,7 @@ pub mod bench;
 pub mod cli;
 pub mod control;
 pub mod discretization;
+pub mod export;
 pub mod frame;
 pub mod integrate;
 pub mod metrics;

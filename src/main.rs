@@ -78,6 +78,32 @@ enum Command {
     Gui(GuiArgs),
     /// Send a saved recording to a viewer, or re-run it from its stored preset and commands.
     Replay(ReplayArgs),
+    /// Continue a run from a checkpoint (`record --checkpoint-every`).
+    Resume {
+        /// A checkpoint written by peridyn.
+        checkpoint: PathBuf,
+        /// The recording of the continued run (default: CHECKPOINT-resumed.rrd).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+        /// Also write a ParaView series into this folder.
+        #[arg(long, value_name = "DIR")]
+        vtu: Option<PathBuf>,
+    },
+    /// Write a recording as a ParaView time series: one .vtu per frame and a .pvd.
+    Export {
+        /// A recording made by peridyn.
+        file: PathBuf,
+        /// Which recording of the file (0 = the first; a session that restarted holds one per
+        /// run).
+        #[arg(long, default_value_t = 0)]
+        recording: usize,
+        /// Output folder.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
     /// Throughput benchmark on the pmb-block-3d preset (single- and all-thread).
     Bench {
         /// Steps per measurement (default: the preset's 100).
@@ -120,6 +146,17 @@ struct RunArgs {
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
+    /// Also write a ParaView series (one .vtu per frame and a .pvd) into this folder, off the
+    /// solver thread.
+    #[arg(long, value_name = "DIR")]
+    vtu: Option<PathBuf>,
+    /// Write a restart file every N steps or span of simulated time (`500`, `500 steps`,
+    /// `20 us`); `peridyn resume FILE` continues from the last one.
+    #[arg(long, value_name = "WHEN")]
+    checkpoint_every: Option<String>,
+    /// The restart file (default: the recording's name with `.ckpt`).
+    #[arg(long, value_name = "FILE")]
+    checkpoint: Option<PathBuf>,
     /// Timed commands to apply, one per line: `at 20 us set chi 0.9`,
     /// `at 2000 steps set m 3 restart` (see README).
     #[arg(long)]
@@ -162,6 +199,9 @@ impl RunArgs {
             steps: self.steps,
             quiet: self.quiet,
             script: self.script.clone(),
+            vtu: self.vtu.clone(),
+            checkpoint_every: self.checkpoint_every.clone(),
+            checkpoint: self.checkpoint.clone(),
         }
     }
 }
@@ -214,6 +254,25 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
                 args.quiet,
             )
         }
+        Command::Resume {
+            checkpoint,
+            output,
+            quiet,
+            vtu,
+        } => cli::resume(
+            &checkpoint,
+            output,
+            &RunOptions {
+                quiet,
+                vtu,
+                ..RunOptions::default()
+            },
+        ),
+        Command::Export {
+            file,
+            recording,
+            output,
+        } => cli::export(&file, recording, &output),
         Command::Gui(args) => {
             let (preset, variant) = match args.preset {
                 Some(p) => (p, args.variant),
@@ -262,9 +321,10 @@ struct ViewerArgs {
     /// Stream to a running viewer (default URL rerun+http://127.0.0.1:9876/proxy).
     #[arg(long, num_args = 0..=1, default_missing_value = "rerun+http://127.0.0.1:9876/proxy", conflicts_with_all = ["serve", "spawn"])]
     connect: Option<String>,
-    /// Host a gRPC stream that viewers connect to (default 0.0.0.0:9876); it keeps serving
-    /// after the run until Ctrl-C.
-    #[arg(long, num_args = 0..=1, default_missing_value = "0.0.0.0:9876", conflicts_with = "spawn")]
+    /// Host a gRPC stream that viewers connect to (default 127.0.0.1:9876, this machine only;
+    /// give e.g. 0.0.0.0:9876 to serve other machines: the stream is unauthenticated); it keeps
+    /// serving after the run until Ctrl-C.
+    #[arg(long, num_args = 0..=1, default_missing_value = "127.0.0.1:9876", conflicts_with = "spawn")]
     serve: Option<String>,
     /// Start a local `rerun` viewer (needs `rerun` on PATH).
     #[arg(long)]
@@ -313,7 +373,8 @@ struct GuiArgs {
     /// Stream to a running (possibly remote) viewer instead of spawning one.
     #[arg(long, conflicts_with = "serve")]
     connect: Option<String>,
-    /// Host a gRPC stream that remote viewers connect to, instead of spawning a viewer.
+    /// Host a gRPC stream that viewers connect to (IP:PORT; a non-loopback address is reachable
+    /// from other machines, unauthenticated), instead of spawning a viewer.
     #[arg(long)]
     serve: Option<String>,
     /// Also save everything to this file.

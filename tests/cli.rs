@@ -537,6 +537,31 @@ fn hybrid_recording_holds_the_scheme_mask_and_omega_s_fraction() {
             .any(|t| t.contains("nodes switched to the standard scheme")),
         "switching events logged"
     );
+    assert_first_view(
+        &rec,
+        &[
+            "/nodes/damage",
+            "/nodes/scheme",
+            "/metrics/hybrid/omega_s_fraction",
+        ],
+    );
+}
+
+/// The recording carries its default blueprint: views of the scene's main field and masks,
+/// and of its figures of merit (the viewer opens on these, not on an automatic grid).
+fn assert_first_view(rec: &readback::Recording, entities: &[&str]) {
+    assert!(!rec.blueprint.is_empty(), "no blueprint in the recording");
+    for entity in entities {
+        assert!(
+            rec.blueprint.iter().any(|t| t == entity),
+            "no view of {entity} in the blueprint: {:?}",
+            rec.blueprint
+        );
+    }
+    assert!(
+        rec.blueprint.iter().any(|t| t == "/metrics/timing/**"),
+        "timing grouped in its own view"
+    );
 }
 
 /// A corrosion recording holds what a viewer needs to watch the specimen dissolve: the
@@ -602,4 +627,13 @@ fn corrosion_recording_holds_concentration_phase_and_scheme_masks() {
     }
     assert_eq!(loss[&0], 0.0);
     assert!(loss[&300] > 0.05, "the specimen dissolved: {}", loss[&300]);
+    assert_first_view(
+        &rec,
+        &[
+            "/nodes/concentration",
+            "/nodes/phase",
+            "/nodes/scheme",
+            "/metrics/corrosion/volume_loss",
+        ],
+    );
 }

@@ -27,17 +27,20 @@ fn model() -> Model {
     info.stable_dt = 2e-7;
     info.total_steps = 870;
     info.frame_every = 20;
+    let mut state = ControlState::new(
+        "test",
+        &info,
+        Discretization {
+            m: 4.0,
+            dx: 1e-3,
+            scheme: "standard".into(),
+        },
+        peridyn::scene::DEFAULT_CHI,
+    );
+    state.preset = "vibrating-plate".into();
+    state.variant = Some("small".into());
     Model {
-        state: ControlState::new(
-            "test",
-            &info,
-            Discretization {
-                m: 4.0,
-                dx: 1e-3,
-                scheme: "standard".into(),
-            },
-            peridyn::scene::DEFAULT_CHI,
-        ),
+        state,
         inputs: PanelInputs::default(),
         emitted: Vec::new(),
     }
@@ -256,8 +259,8 @@ fn picking_a_preset_and_variant_emits_load() {
     );
 }
 
-/// The panel opens on the preset's χ, not a default of its own: the state the simulation
-/// thread publishes comes from the scene.
+/// The panel opens on the preset's χ, variant and preset, not defaults of its own: the state the
+/// simulation thread publishes comes from the scene.
 #[test]
 fn the_panel_starts_at_the_presets_chi() {
     use egui_kittest::kittest::NodeT;
@@ -283,6 +286,16 @@ fn the_panel_starts_at_the_presets_chi() {
     let shown = h.get_by_label("χ").accesskit_node().numeric_value();
     assert_eq!(shown, Some(0.9), "the χ slider shows the preset's value");
     assert!(h.state().emitted.is_empty(), "showing it gives no command");
+    // The picker shows the loaded preset and variant, and the Ω_s line no claim of the standard
+    // scheme everywhere.
+    let toggled = |label: &str| format!("{:?}", h.get_by_label(label).accesskit_node().toggled());
+    assert_eq!(toggled("kalthoff-winkler"), "Some(True)");
+    assert_eq!(toggled("small-hybrid"), "Some(True)");
+    assert_eq!(toggled("small"), "Some(False)");
+    assert!(
+        h.query_by_label_contains("standard scheme everywhere")
+            .is_none()
+    );
     driver.finish(false, None).unwrap();
     let _ = std::fs::remove_file(file);
 }

@@ -272,3 +272,66 @@ fn a_connected_run_survives_its_viewer_dying() {
         "the file has the whole run"
     );
 }
+
+/// The listening TCP sockets on `port`, as (local address, hex as the kernel prints it).
+fn listeners(port: u16) -> Vec<String> {
+    let port_hex = format!(":{port:04X}");
+    ["/proc/net/tcp", "/proc/net/tcp6"]
+        .iter()
+        .filter_map(|t| std::fs::read_to_string(t).ok())
+        .flat_map(|text| {
+            text.lines()
+                .skip(1)
+                .filter_map(|l| {
+                    let cols: Vec<&str> = l.split_whitespace().collect();
+                    let (local, state) = (cols.get(1)?, cols.get(3)?);
+                    (local.ends_with(&port_hex) && *state == "0A")
+                        .then(|| local.trim_end_matches(&port_hex).to_string())
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+/// `--serve` without an address binds loopback only (read from the kernel's socket table:
+/// 127.0.0.1 is `0100007F`), and says so.
+#[test]
+fn serve_without_an_address_listens_on_loopback_only() {
+    let port = 9876;
+    assert!(
+        listeners(port).is_empty(),
+        "port {port} is taken on this machine"
+    );
+    let child = Command::new(env!("CARGO_BIN_EXE_peridyn"))
+        .args([
+            "run",
+            "vibrating-plate",
+            "--variant",
+            "small",
+            "--steps",
+            "5",
+            "--serve",
+            "-q",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    let bound = loop {
+        let found = listeners(port);
+        if !found.is_empty() {
+            break found;
+        }
+        assert!(start.elapsed() < Duration::from_secs(60), "never listened");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(bound, ["0100007F"], "bound to: {bound:?}; {stderr}");
+    assert!(stderr.contains("this machine only"), "{stderr}");
+}

@@ -20,6 +20,7 @@ use crate::scene::{CheckSet, CrackGeometry, HybridSpec, Solid};
 use crate::scheme::VectorOperator;
 use crate::scheme::runs::RowRuns;
 use crate::scheme::wls::{self, Basis, FitError};
+use crate::solver::State;
 
 /// A switching event: at `step` (time `time`), `nodes` nodes moved to Ω_s.
 #[derive(Debug, Clone, PartialEq)]
@@ -582,6 +583,47 @@ impl<const D: usize> Hybrid<D> {
             });
         }
         moved
+    }
+
+    /// Into a checkpoint's state: the mask, χ and the check counters (the check set and the
+    /// motion filter are rebuilt from the mask; the filter changes the work, not the result).
+    pub fn save(&self, state: &mut State) {
+        state.put_u8("hybrid/mask", self.mask.iter().map(|&m| m as u8).collect());
+        state.put_f64("hybrid/chi", vec![self.spec.chi]);
+        state.put_u64(
+            "hybrid/counters",
+            vec![self.checked_bonds, self.full_checks, self.filtered_checks],
+        );
+    }
+
+    /// From a checkpoint's state of the same scene: the nodes that switched since the start
+    /// switch again (Ω_s only grows), and the check set is rebuilt.
+    pub fn restore(&mut self, state: &State, families: &Families) -> Result<(), String> {
+        let saved = state.u8("hybrid/mask", self.mask.len())?;
+        let chi = crate::scene::check_chi(state.f64("hybrid/chi", 1)?[0])?;
+        let counters = state.u64("hybrid/counters", 3)?;
+        let mut mask = Vec::with_capacity(saved.len());
+        for (i, (&m, &now)) in saved.iter().zip(&self.mask).enumerate() {
+            let class = match m {
+                0 => SchemeClass::Standard,
+                1 => SchemeClass::Wls,
+                _ => return Err(format!("hybrid/mask: node {i} has no scheme class {m}")),
+            };
+            if class == SchemeClass::Wls && now == SchemeClass::Standard {
+                return Err(format!(
+                    "hybrid/mask: node {i} is in Ω_w but started in Ω_s (Ω_s only grows)"
+                ));
+            }
+            mask.push(class);
+        }
+        self.standard_nodes = mask.iter().filter(|&&m| m == SchemeClass::Standard).count();
+        self.mask = mask;
+        self.spec.chi = chi;
+        (self.checked_bonds, self.full_checks, self.filtered_checks) =
+            (counters[0], counters[1], counters[2]);
+        self.events.clear();
+        self.rebuild_check_set(families);
+        Ok(())
     }
 
     /// Ω_w nodes that lost a bond (broken from the Ω_s side): damage reached Ω_w. They and their

@@ -7,7 +7,7 @@ mod report;
 mod session;
 
 pub use report::describe;
-pub use session::{RunOptions, record, replay, run};
+pub use session::{RunOptions, record, replay, resume, run};
 
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -187,6 +187,31 @@ pub fn bench(options: &BenchOptions) -> Result<ExitCode, Failure> {
             bench::hybrid::report("medium").map_err(Failure::Runtime)?
         );
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `peridyn export`: a recording as a ParaView series.
+pub fn export(
+    file: &std::path::Path,
+    recording: usize,
+    dir: &std::path::Path,
+) -> Result<ExitCode, Failure> {
+    if !file.is_file() {
+        return Err(Failure::BadInput(format!(
+            "{}: no such recording",
+            file.display()
+        )));
+    }
+    let exported =
+        crate::export::from_recording(file, recording, dir).map_err(Failure::BadInput)?;
+    println!(
+        "wrote {} frames ({} to {} points) and {}",
+        exported.frames,
+        exported.points.iter().min().unwrap_or(&0),
+        exported.points.iter().max().unwrap_or(&0),
+        exported.collection.display()
+    );
+    println!("open it: paraview {}", exported.collection.display());
     Ok(ExitCode::SUCCESS)
 }
 

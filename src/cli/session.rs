@@ -10,6 +10,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use super::report::{describe, print_summary};
 use super::{Failure, SceneRequest, exit_code, stop_flag, wait_while_serving};
+use crate::control::checkpoint::{Checkpoint, Plan};
+use crate::control::driver::Outputs;
 use crate::control::runspec::{self, RunSpec};
 use crate::control::script::{self, Timed};
 use crate::control::{Driver, driver};
@@ -28,6 +30,12 @@ pub struct RunOptions {
     pub quiet: bool,
     /// Timed commands to apply.
     pub script: Option<PathBuf>,
+    /// A ParaView series per run into this folder.
+    pub vtu: Option<PathBuf>,
+    /// Write a checkpoint every N steps or span of simulated time (`500`, `500 steps`, `20 us`).
+    pub checkpoint_every: Option<String>,
+    /// Where (default: the recording's name with `.ckpt`).
+    pub checkpoint: Option<PathBuf>,
 }
 
 /// The default recording of a scene: `PRESET[-VARIANT].rrd`.
@@ -46,7 +54,12 @@ pub fn record(
 ) -> Result<ExitCode, Failure> {
     let scene = request.load()?;
     let path = output.unwrap_or_else(|| default_output(&scene));
-    let summary = simulate(&scene, RecordTarget::File(path.clone()), options)?;
+    let summary = simulate(
+        &scene,
+        RecordTarget::File(path.clone()),
+        options,
+        path.with_extension("ckpt"),
+    )?;
     println!("recording: {}", path.display());
     println!(
         "view it:   pip install 'rerun-sdk==0.36.*' && rerun {}",
@@ -62,7 +75,8 @@ pub fn run(
     options: &RunOptions,
 ) -> Result<ExitCode, Failure> {
     let scene = request.load()?;
-    let summary = simulate(&scene, target, options)?;
+    let checkpoint = default_output(&scene).with_extension("ckpt");
+    let summary = simulate(&scene, target, options, checkpoint)?;
     Ok(exit_code(&summary))
 }
 
@@ -70,6 +84,7 @@ fn simulate(
     scene: &Scene,
     target: RecordTarget,
     options: &RunOptions,
+    default_checkpoint: PathBuf,
 ) -> Result<RunSummary, Failure> {
     if options.every == Some(0) {
         return Err(Failure::BadInput("--every must be ≥ 1".into()));
@@ -78,31 +93,99 @@ fn simulate(
         Some(path) => script::load(path).map_err(|e| Failure::BadInput(e.to_string()))?,
         None => Vec::new(),
     };
+    let checkpoints = match &options.checkpoint_every {
+        Some(every) => Some(
+            Plan::new(
+                options.checkpoint.clone().unwrap_or(default_checkpoint),
+                every,
+            )
+            .map_err(Failure::BadInput)?,
+        ),
+        None if options.checkpoint.is_some() => {
+            return Err(Failure::BadInput(
+                "--checkpoint needs --checkpoint-every (N steps or a time)".into(),
+            ));
+        }
+        None => None,
+    };
     let spec = RunSpec::new(scene, options.every, options.steps);
-    run_session(spec, &script, target, options.quiet)
+    let outputs = Outputs {
+        vtu: options.vtu.clone(),
+    };
+    let session = crate::record::recording_id(scene);
+    run_session(target, options.quiet, checkpoints, |outlet| {
+        let driver =
+            Driver::start_with(spec, outlet, &session, outputs).map_err(Failure::BadInput)?;
+        Ok((driver, script))
+    })
+}
+
+/// `peridyn resume`: continues a checkpointed session into `output` (default
+/// `CHECKPOINT-resumed.rrd`), writing checkpoints on the same cadence into the same file.
+pub fn resume(
+    checkpoint: &Path,
+    output: Option<PathBuf>,
+    options: &RunOptions,
+) -> Result<ExitCode, Failure> {
+    let saved = Checkpoint::read(checkpoint).map_err(Failure::BadInput)?;
+    let output = output.unwrap_or_else(|| {
+        let stem = checkpoint
+            .file_stem()
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_else(|| "run".into());
+        checkpoint.with_file_name(format!("{stem}-resumed.rrd"))
+    });
+    let checkpoints = saved
+        .header
+        .checkpoint_every
+        .as_deref()
+        .map(|every| Plan::new(checkpoint.to_path_buf(), every))
+        .transpose()
+        .map_err(Failure::BadInput)?;
+    let session = format!("resumed-{}", std::process::id());
+    let outputs = Outputs {
+        vtu: options.vtu.clone(),
+    };
+    let summary = run_session(
+        RecordTarget::File(output.clone()),
+        options.quiet,
+        checkpoints,
+        |outlet| {
+            Driver::resume(&saved, outlet, &session, outputs)
+                .map_err(|e| Failure::BadInput(format!("{}: {e}", checkpoint.display())))
+        },
+    )?;
+    println!("recording: {}", output.display());
+    Ok(exit_code(&summary))
 }
 
 /// Runs a session to its end with its script: progress, Ctrl-C (the recording keeps every
-/// frame logged before it), a served stream kept up afterwards, the summary printed.
+/// frame logged before it), checkpoints on their cadence, a served stream kept up afterwards,
+/// the summary printed. `start` builds the session's driver on the outlet.
 fn run_session(
-    spec: RunSpec,
-    script: &[Timed],
     target: RecordTarget,
     quiet: bool,
+    checkpoints: Option<Plan>,
+    start: impl FnOnce(Outlet) -> Result<(Driver, Vec<Timed>), Failure>,
 ) -> Result<RunSummary, Failure> {
     let serving = matches!(target, RecordTarget::Serve { .. });
-    let scene = spec.scene().map_err(|e| Failure::BadInput(e.to_string()))?;
     let outlet = Outlet::open(&target).map_err(Failure::Runtime)?;
-    let session = crate::record::recording_id(&scene);
     // The session's driver closes its recordings at the end; the outlet kept here keeps a
     // served stream (and its replay buffer) up until Ctrl-C.
-    let driver = Driver::start(spec, outlet.clone(), &session).map_err(Failure::BadInput)?;
+    let (driver, script) = start(outlet.clone())?;
     eprintln!(
         "{}",
-        describe(&scene, &driver.info(), Some(driver.total_steps()))
+        describe(driver.scene(), &driver.info(), Some(driver.total_steps()))
     );
     if !script.is_empty() {
         eprintln!("{} scripted commands", script.len());
+    }
+    if let Some(plan) = &checkpoints {
+        eprintln!(
+            "checkpoints every {} into {}",
+            plan.cadence(),
+            plan.path.display()
+        );
     }
     let stop = stop_flag();
     let bar = if quiet {
@@ -120,8 +203,8 @@ fn run_session(
             bar.set_position(n);
         }
     };
-    let outcome =
-        driver::run_script(driver, script, &stop, &mut progress).map_err(Failure::Runtime)?;
+    let outcome = driver::run_script(driver, &script, checkpoints, &stop, &mut progress)
+        .map_err(Failure::Runtime)?;
     bar.finish_and_clear();
     for (line, why) in &outcome.refused {
         eprintln!("warning: script line {line}: {why}");
@@ -187,7 +270,15 @@ pub fn replay(
             file.with_file_name(format!("{stem}-resim.rrd"))
         });
         let target = viewer(Some(output.clone())).unwrap_or(RecordTarget::File(output.clone()));
-        let summary = run_session(spec, &script, target, quiet)?;
+        let session = crate::record::recording_id(
+            &spec
+                .scene()
+                .map_err(|e| Failure::BadInput(format!("{}: {e}", file.display())))?,
+        );
+        let summary = run_session(target, quiet, None, |outlet| {
+            let driver = Driver::start(spec, outlet, &session).map_err(Failure::BadInput)?;
+            Ok((driver, script))
+        })?;
         println!("recording: {}", output.display());
         return Ok(exit_code(&summary));
     }

@@ -6,11 +6,13 @@
 
 use std::time::Instant;
 
+use super::checkpoint::{Checkpoint, Header, Plan};
 use super::command::Command;
 use super::rescene;
 use super::runspec::{self, RunSpec};
 use super::script::Timed;
 use super::state::{ControlState, Effect};
+use crate::export::VtuSeries;
 use crate::frame::Frame;
 use crate::record::{Outlet, RerunSink};
 use crate::runner::{FrameSink, RunSummary};
@@ -18,8 +20,18 @@ use crate::scene::Scene;
 use crate::sim;
 use crate::solver::{SimError, Stepper};
 
+/// Where a session writes besides its recording.
+#[derive(Debug, Clone, Default)]
+pub struct Outputs {
+    /// A `.vtu` series per run in this folder (`--vtu DIR`).
+    pub vtu: Option<std::path::PathBuf>,
+}
+
 pub struct Driver {
     pub state: ControlState,
+    outputs: Outputs,
+    /// The current run's VTU series, with `outputs.vtu`.
+    vtu: Option<VtuSeries>,
     spec: RunSpec,
     /// The scene as given, before any command.
     base: Scene,
@@ -39,11 +51,98 @@ pub struct Driver {
 impl Driver {
     /// Builds the first run. Errors are bad input (the preset or the discretization).
     pub fn start(spec: RunSpec, outlet: Outlet, session: &str) -> Result<Driver, String> {
+        Driver::start_with(spec, outlet, session, Outputs::default())
+    }
+
+    /// Continues a checkpointed session: the scene of its current run rebuilt from the stored
+    /// preset and choices, the simulation's state restored, the command log and settings as
+    /// they were; the run goes on as a new recording from the checkpoint's step. Returns the
+    /// script lines that had not fired yet.
+    pub fn resume(
+        checkpoint: &Checkpoint,
+        outlet: Outlet,
+        session: &str,
+        outputs: Outputs,
+    ) -> Result<(Driver, Vec<Timed>), String> {
+        let header = &checkpoint.header;
+        let spec = header.run_spec()?;
+        let base = spec.scene().map_err(|e| e.to_string())?;
+        let choice = header.discretization();
+        let scene = rescene::with_discretization(&base, &choice).map_err(|e| e.to_string())?;
+        let mut sim = sim::build(&scene).map_err(|e| e.to_string())?;
+        sim.restore_state(&checkpoint.state)
+            .map_err(|e| format!("the checkpoint does not fit its own preset: {e}"))?;
+        let mut state = ControlState::for_scene(session, &sim.info(), &base);
+        state.log = spec.applied()?;
+        state.run = header.run;
+        state.discretization = choice;
+        state.chi = header.chi;
+        let mut driver = Driver {
+            state,
+            outputs,
+            vtu: None,
+            spec,
+            base,
+            outlet,
+            sim,
+            sink: None,
+            pending: 0,
+            started: Instant::now(),
+            frames: 0,
+            frame_seconds: 0.0,
+            last_frame: None,
+            rate_mark: (Instant::now(), 0),
+        };
+        driver.open_run(&scene)?;
+        driver.state.every = header.every;
+        driver.message(
+            "info",
+            &format!(
+                "resumed from a checkpoint at step {} (t = {:.4e} s)",
+                driver.steps_done(),
+                driver.time()
+            ),
+        );
+        Ok((driver, header.script()?))
+    }
+
+    /// Writes a checkpoint of the session as it stands (between steps): the run description
+    /// and log, the current run's settings, the script lines not yet fired, the state.
+    pub fn checkpoint(&self, plan: &Plan, remaining: &[Timed]) -> Result<(), String> {
+        let d = &self.state.discretization;
+        let header = Header {
+            peridyn: env!("CARGO_PKG_VERSION").into(),
+            spec: self.spec.with_log(&self.state.log).to_text(),
+            run: self.state.run,
+            m: d.m,
+            dx: d.dx,
+            scheme: d.scheme.clone(),
+            every: self.state.every,
+            chi: self.state.chi,
+            script: remaining.iter().map(Timed::to_line).collect(),
+            checkpoint_every: Some(plan.cadence()),
+        };
+        Checkpoint {
+            header,
+            state: self.sim.save_state(),
+        }
+        .write(&plan.path)
+    }
+
+    /// [`Driver::start`], also writing `outputs`.
+    pub fn start_with(
+        spec: RunSpec,
+        outlet: Outlet,
+        session: &str,
+        outputs: Outputs,
+    ) -> Result<Driver, String> {
         let base = spec.scene().map_err(|e| e.to_string())?;
         let sim = sim::build(&base).map_err(|e| e.to_string())?;
         let state = ControlState::for_scene(session, &sim.info(), &base);
         let mut driver = Driver {
             state,
+            outputs,
+            vtu: None,
             spec,
             base,
             outlet,
@@ -64,11 +163,13 @@ impl Driver {
     fn open_run(&mut self, scene: &Scene) -> Result<(), String> {
         let info = self.sim.info();
         let mut sink = RerunSink::start_in(&self.outlet, &self.state.recording_id(), scene, &info)?;
-        sink.document(
-            runspec::ENTITY,
-            &self.spec.with_log(&self.state.log).to_text(),
-        );
+        let run = self.spec.with_log(&self.state.log).to_text();
+        sink.document(runspec::ENTITY, &run);
         self.sink = Some(sink);
+        if let Some(dir) = &self.outputs.vtu {
+            let prefix = format!("{}_run{}", scene.name, self.state.run);
+            self.vtu = Some(VtuSeries::start(dir, &prefix, run)?);
+        }
         self.state.on_built(&info);
         self.state.metrics.total_steps = self.total_steps();
         self.started = Instant::now();
@@ -81,6 +182,11 @@ impl Driver {
     pub fn total_steps(&self) -> u64 {
         let total = self.sim.info().total_steps;
         self.spec.steps.map_or(total, |cap| cap.min(total))
+    }
+
+    /// The session's scene as given, before any command.
+    pub fn scene(&self) -> &Scene {
+        &self.base
     }
 
     /// The current run's facts (size, Δt, its bound).
@@ -138,6 +244,9 @@ impl Driver {
         self.state.observe(&frame, self.total_steps(), rate);
         if frame.step == self.total_steps() {
             self.last_frame = Some(frame.clone());
+        }
+        if let Some(vtu) = &mut self.vtu {
+            vtu.send(frame.clone());
         }
         if let Some(sink) = &mut self.sink {
             sink.send(frame);
@@ -209,6 +318,17 @@ impl Driver {
         Ok(())
     }
 
+    /// Closes the current run's recording (and VTU series).
+    fn close_run(&mut self) -> Result<(), String> {
+        if let Some(vtu) = self.vtu.take() {
+            vtu.finish()?;
+        }
+        if let Some(sink) = self.sink.take() {
+            sink.finish()?;
+        }
+        Ok(())
+    }
+
     fn save(&mut self, path: Option<&std::path::Path>) -> Result<(), String> {
         match &mut self.sink {
             Some(sink) => sink.save(path),
@@ -231,9 +351,7 @@ impl Driver {
         let spec = RunSpec::new(&scene, self.spec.every, self.spec.steps);
         let scene = spec.scene().map_err(|e| e.to_string())?;
         let sim = sim::build(&scene).map_err(|e| e.to_string())?;
-        if let Some(sink) = self.sink.take() {
-            sink.finish()?;
-        }
+        self.close_run()?;
         let saving = self.state.saving.clone();
         let running = self.state.running;
         self.state =
@@ -260,9 +378,7 @@ impl Driver {
         if let Some(applied) = self.state.log.last().cloned() {
             self.log_applied(&applied);
         }
-        if let Some(sink) = self.sink.take() {
-            sink.finish()?;
-        }
+        self.close_run()?;
         self.sim = sim;
         self.pending = 0;
         self.open_run(&scene)
@@ -278,9 +394,7 @@ impl Driver {
             let text = format!("interrupted at step {}", self.sim.steps_done());
             self.message("warn", &text);
         }
-        if let Some(sink) = self.sink.take() {
-            sink.finish()?;
-        }
+        self.close_run()?;
         self.outlet.stop_saving();
         let wall = self.started.elapsed().as_secs_f64();
         let last_frame = self.last_frame.take();
@@ -307,9 +421,12 @@ pub struct ScriptOutcome {
 }
 
 /// Runs a session headless, giving the script's commands in order as their time comes.
+/// With `checkpoints`, a restart file is written on its cadence (the step count starts again
+/// with each new run).
 pub fn run_script(
     mut driver: Driver,
     script: &[Timed],
+    mut checkpoints: Option<Plan>,
     stop: &std::sync::atomic::AtomicBool,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<ScriptOutcome, String> {
@@ -317,6 +434,7 @@ pub fn run_script(
     let mut refused = Vec::new();
     let mut error = None;
     let mut interrupted = false;
+    let mut run = driver.state.run;
     loop {
         while let Some(line) = script.get(next) {
             if !line.at.due(driver.steps_done(), driver.time()) {
@@ -337,6 +455,15 @@ pub fn run_script(
         if let Err(e) = driver.step() {
             error = Some(e);
             break;
+        }
+        if let Some(plan) = checkpoints.as_mut() {
+            if driver.state.run != run {
+                run = driver.state.run;
+                plan.restart();
+            }
+            if plan.due(driver.steps_done(), driver.time()) {
+                driver.checkpoint(plan, &script[next..])?;
+            }
         }
         progress(driver.steps_done(), driver.total_steps());
     }

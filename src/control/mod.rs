@@ -5,6 +5,7 @@
 //! the driver applying it all to a running simulation (`driver`). Nothing here knows egui;
 //! the solver core knows nothing of this module.
 
+pub mod checkpoint;
 pub mod command;
 pub mod driver;
 pub mod rescene;

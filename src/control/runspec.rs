@@ -71,13 +71,31 @@ impl RunSpec {
         toml::from_str(text).map_err(|e| format!("bad `{ENTITY}` document: {e}"))
     }
 
+    /// The command log as applied commands (run, step, command).
+    pub fn applied(&self) -> Result<Vec<Applied>, String> {
+        self.commands
+            .iter()
+            .enumerate()
+            .map(|(i, text)| {
+                let bad = || format!("bad command log line {}: `{text}`", i + 1);
+                let (run, step, command) = parse_line(text).ok_or_else(bad)?;
+                Ok(Applied {
+                    run,
+                    step,
+                    command: Command::parse(command)
+                        .map_err(|e| format!("command log line {}: {e}", i + 1))?,
+                })
+            })
+            .collect()
+    }
+
     /// The command log as a script that reapplies every command at the step it was applied.
     pub fn script(&self) -> Result<Vec<Timed>, String> {
         self.commands
             .iter()
             .enumerate()
             .map(|(i, text)| {
-                let (step, command) = parse_line(text)
+                let (_run, step, command) = parse_line(text)
                     .ok_or_else(|| format!("bad command log line {}: `{text}`", i + 1))?;
                 Ok(Timed {
                     at: Trigger::Step(step),
@@ -95,11 +113,11 @@ pub fn line(a: &Applied) -> String {
     format!("run {} at {} steps: {}", a.run, a.step, a.command)
 }
 
-fn parse_line(text: &str) -> Option<(u64, &str)> {
+fn parse_line(text: &str) -> Option<(u32, u64, &str)> {
     let rest = text.strip_prefix("run ")?;
-    let (_run, rest) = rest.split_once(" at ")?;
+    let (run, rest) = rest.split_once(" at ")?;
     let (step, command) = rest.split_once(" steps: ")?;
-    Some((step.parse().ok()?, command))
+    Some((run.parse().ok()?, step.parse().ok()?, command))
 }
 
 #[cfg(test)]
@@ -123,6 +141,10 @@ mod tests {
         ]);
         let back = RunSpec::from_text(&spec.to_text()).unwrap();
         assert_eq!(back, spec);
+        assert_eq!(
+            back.applied().unwrap()[1].command,
+            Command::SetHorizonFactor(3.0)
+        );
         let script = back.script().unwrap();
         assert_eq!(script[1].at, Trigger::Step(20));
         assert_eq!(script[1].command, Command::SetHorizonFactor(3.0));

@@ -110,24 +110,44 @@ pub fn parse(file: &str, text: &str) -> Result<Vec<Timed>, ScriptError> {
     Ok(out)
 }
 
+const WHEN: &str = "WHEN being `N steps` or a time like `20 us`";
+
 /// Splits `at WHEN COMMAND` into the trigger and the command text.
 fn split_trigger(content: &str) -> Result<(Trigger, &str), String> {
-    let expected = "expected `at WHEN COMMAND`, WHEN being `N steps` or a time like `20 us`";
-    let rest = content
-        .strip_prefix("at ")
-        .ok_or_else(|| expected.to_string())?
-        .trim_start();
-    let number_end = rest
+    let expected = format!("expected `at WHEN COMMAND`, {WHEN}");
+    let rest = content.strip_prefix("at ").ok_or(expected)?.trim_start();
+    let (trigger, command, when) = when_prefix(rest)?;
+    if command.trim().is_empty() {
+        return Err(format!("no command after `at {when}`"));
+    }
+    Ok((trigger, command.trim()))
+}
+
+/// A step count or a simulated time on its own: `500 steps`, `20 us`, `1.5e-5 s`.
+pub fn parse_when(text: &str) -> Result<Trigger, String> {
+    let (trigger, rest, when) = when_prefix(text.trim())?;
+    if !rest.trim().is_empty() {
+        return Err(format!(
+            "unexpected `{}` after `{when}`; {WHEN}",
+            rest.trim()
+        ));
+    }
+    Ok(trigger)
+}
+
+/// The WHEN at the start of `text`: the trigger, the text after it, and the WHEN as written.
+fn when_prefix(text: &str) -> Result<(Trigger, &str, String), String> {
+    let number_end = text
         .find(|c: char| !(c.is_ascii_digit() || ".eE+-".contains(c)))
-        .unwrap_or(rest.len());
-    let number = &rest[..number_end];
-    let after = rest[number_end..].trim_start();
-    let (unit, command) = after.split_once(char::is_whitespace).unwrap_or((after, ""));
+        .unwrap_or(text.len());
+    let number = &text[..number_end];
+    let after = text[number_end..].trim_start();
+    let (unit, rest) = after.split_once(char::is_whitespace).unwrap_or((after, ""));
     let value: f64 = number
         .parse()
         .ok()
         .filter(|v: &f64| v.is_finite() && *v >= 0.0)
-        .ok_or_else(|| format!("`{number}` is not a time or step count ≥ 0; {expected}"))?;
+        .ok_or_else(|| format!("`{number}` is not a time or step count ≥ 0; {WHEN}"))?;
     let trigger = match unit {
         "steps" | "step" => {
             if value.fract() != 0.0 {
@@ -140,16 +160,30 @@ fn split_trigger(content: &str) -> Result<(Trigger, &str), String> {
             None => {
                 let allowed: Vec<&str> = TIME_UNITS.iter().map(|(u, _)| *u).collect();
                 return Err(format!(
-                    "unknown unit `{unit}` after `at {number}`; allowed: steps, {}",
+                    "unknown unit `{unit}` after `{number}`; allowed: steps, {}",
                     allowed.join(", ")
                 ));
             }
         },
     };
-    if command.trim().is_empty() {
-        return Err(format!("no command after `at {number} {unit}`"));
+    Ok((trigger, rest, format!("{number} {unit}")))
+}
+
+/// `N steps` or the time in seconds (round-trip exact): what `parse_when` reads.
+impl std::fmt::Display for Trigger {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Trigger::Step(n) => write!(f, "{n} steps"),
+            Trigger::Time(t) => write!(f, "{t:?} s"),
+        }
     }
-    Ok((trigger, command.trim()))
+}
+
+impl Timed {
+    /// The line as a script would give it.
+    pub fn to_line(&self) -> String {
+        format!("at {} {}", self.at, self.command)
+    }
 }
 
 #[cfg(test)]

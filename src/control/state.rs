@@ -60,8 +60,9 @@ pub struct LiveMetrics {
     /// Nodes with damage ≥ 0.35 (a crack).
     pub damaged_nodes: usize,
     pub broken_bonds: f64,
-    /// Fraction of nodes in the standard-scheme region Ω_s (1 without a hybrid scheme).
-    pub standard_fraction: f64,
+    /// Fraction of nodes in the standard-scheme region Ω_s; None without a hybrid scheme
+    /// (the standard scheme everywhere).
+    pub standard_fraction: Option<f64>,
 }
 
 /// One applied command: the run it was applied in (1 = the first) and the step of that run.
@@ -76,6 +77,9 @@ pub struct Applied {
 pub struct ControlState {
     /// Prefix of every recording id of this session.
     pub session: String,
+    /// The session's preset (a built-in name or a file) and variant.
+    pub preset: String,
+    pub variant: Option<String>,
     /// 1 for the first run; each rebuild or reset starts the next.
     pub run: u32,
     pub running: bool,
@@ -102,7 +106,16 @@ impl ControlState {
     /// the default where it has none); `session` prefixes every recording id.
     pub fn for_scene(session: impl Into<String>, info: &SimInfo, scene: &Scene) -> Self {
         let chi = scene.hybrid.map_or(crate::scene::DEFAULT_CHI, |h| h.chi);
-        ControlState::new(session, info, super::rescene::discretization_of(scene), chi)
+        let discretization = super::rescene::discretization_of(scene);
+        ControlState {
+            preset: scene
+                .source
+                .strip_prefix("builtin:")
+                .unwrap_or(&scene.source)
+                .to_string(),
+            variant: scene.variant.clone(),
+            ..ControlState::new(session, info, discretization, chi)
+        }
     }
 
     /// The state of a freshly built run; `session` prefixes every recording id.
@@ -114,6 +127,8 @@ impl ControlState {
     ) -> Self {
         ControlState {
             session: session.into(),
+            preset: String::new(),
+            variant: None,
             run: 1,
             running: true,
             chi,
@@ -126,7 +141,6 @@ impl ControlState {
             bonds: info.bonds,
             metrics: LiveMetrics {
                 total_steps: info.total_steps,
-                standard_fraction: 1.0,
                 ..LiveMetrics::default()
             },
             message: None,
@@ -195,7 +209,6 @@ impl ControlState {
         self.bonds = info.bonds;
         self.metrics = LiveMetrics {
             total_steps: info.total_steps,
-            standard_fraction: 1.0,
             ..LiveMetrics::default()
         };
     }
@@ -211,7 +224,7 @@ impl ControlState {
         m.kinetic = frame.scalar("energy/kinetic").unwrap_or(0.0);
         m.strain = frame.scalar("energy/strain").unwrap_or(0.0);
         m.broken_bonds = frame.scalar("bonds/broken").unwrap_or(0.0);
-        m.standard_fraction = frame.scalar("hybrid/omega_s_fraction").unwrap_or(1.0);
+        m.standard_fraction = frame.scalar("hybrid/omega_s_fraction");
         if let Some(d) = frame.fields.iter().find(|f| f.name == "damage") {
             m.damaged_nodes = d.values.iter().filter(|&&v| v >= CRACK_DAMAGE).count();
         }

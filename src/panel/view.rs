@@ -28,6 +28,8 @@ pub struct PanelInputs {
     pub error: Option<String>,
     /// The state values the buffers were last filled from.
     seen: Option<(u32, u64, u64, u64, u64, String, u64)>,
+    /// The session the picker was last filled from.
+    seen_session: Option<String>,
 }
 
 /// Schemes offered by the picker (the preset schema's names).
@@ -43,6 +45,12 @@ pub const SCHEMES: &[&str] = &[
 impl PanelInputs {
     /// Refills the buffers whose state value changed (a command applied, a restart).
     pub fn sync(&mut self, state: &ControlState) {
+        // The picker shows the loaded preset and variant until the user picks another.
+        if self.seen_session.as_ref() != Some(&state.session) {
+            self.preset = state.preset.clone();
+            self.variant = state.variant.clone().unwrap_or_default();
+            self.seen_session = Some(state.session.clone());
+        }
         let d = &state.discretization;
         let now = (
             state.run,
@@ -111,10 +119,6 @@ fn variants_of(preset: &str) -> Vec<String> {
 }
 
 fn preset_picker(ui: &mut egui::Ui, inputs: &mut PanelInputs, out: &mut Vec<Command>) {
-    if inputs.preset.is_empty() {
-        inputs.preset = builtin::DEFAULT.0.to_string();
-        inputs.variant = builtin::DEFAULT.1.to_string();
-    }
     ui.horizontal_wrapped(|ui| {
         ui.label("preset");
         for name in builtin::names() {
@@ -378,10 +382,10 @@ fn metrics(ui: &mut egui::Ui, state: &ControlState) {
             ("broken bonds", format!("{}", m.broken_bonds)),
             (
                 "Ω_s fraction",
-                format!(
-                    "{:.1} % (standard scheme everywhere)",
-                    100.0 * m.standard_fraction
-                ),
+                match m.standard_fraction {
+                    Some(f) => format!("{:.1} % (the rest WLS)", 100.0 * f),
+                    None => "100 % (standard scheme everywhere)".into(),
+                },
             ),
         ];
         for (name, value) in rows {

@@ -9,6 +9,7 @@
 //! `control/run` and `control/commands`. Time lines: `step` (sequence) and `sim_time`
 //! (duration).
 
+pub mod blueprint;
 mod layout;
 mod transport;
 

@@ -73,9 +73,22 @@ impl Outlet {
                     )
                     .map_err(|e| format!("cannot serve on `{addr}`: {e}"))?,
                 );
-                eprintln!(
-                    "serving: connect a viewer with `rerun --connect rerun+http://127.0.0.1:{port}/proxy` (or this machine's address)"
-                );
+                let loopback = ip
+                    .parse::<std::net::IpAddr>()
+                    .is_ok_and(|a| a.is_loopback())
+                    || ip == "localhost";
+                if loopback {
+                    eprintln!(
+                        "serving on {ip}:{port} (this machine only): connect a viewer with \
+                         `rerun --connect rerun+http://{ip}:{port}/proxy`"
+                    );
+                } else {
+                    eprintln!(
+                        "warning: serving on {ip}:{port}, reachable from other machines; the \
+                         stream is unauthenticated: anyone who reaches this address can watch \
+                         it. Connect with `rerun --connect rerun+http://HOST:{port}/proxy`"
+                    );
+                }
                 (vec![server], file.as_ref())
             }
             RecordTarget::Spawn { file } => {
@@ -115,6 +128,7 @@ impl Outlet {
             .recording_name(scene.name.clone())
             .send_properties(true)
             .enabled(true)
+            .with_default_blueprint(super::blueprint::of_scene(scene))
             .set_sinks(sinks)
             .map_err(|e| format!("cannot open the recording: {e}"))
     }
@@ -186,15 +200,22 @@ impl SaveSlot {
         }
     }
 
+    /// Store infos, static chunks and everything of the default blueprint.
     fn is_header(msg: &LogMsg) -> bool {
         match msg {
-            LogMsg::SetStoreInfo(_) => true,
+            LogMsg::SetStoreInfo(_) | LogMsg::BlueprintActivationCommand(_) => true,
+            LogMsg::ArrowMsg(store, _) if store.kind() == rerun::StoreKind::Blueprint => true,
             LogMsg::ArrowMsg(_, arrow) => {
                 arrow.batch.get_array_memory_size() < HEADER_CHUNK_LIMIT
                     && rerun::log::Chunk::from_arrow_msg(arrow).is_ok_and(|c| c.is_static())
             }
-            _ => false,
         }
+    }
+
+    /// The store info of a recording (not of its blueprint): a new run's first message.
+    fn starts_run(msg: &LogMsg) -> bool {
+        matches!(msg, LogMsg::SetStoreInfo(info)
+            if info.info.store_id.kind() == rerun::StoreKind::Recording)
     }
 }
 
@@ -203,7 +224,7 @@ impl LogSink for SaveSlot {
         if Self::is_header(&msg) {
             let mut header = self.header.lock().unwrap_or_else(|e| e.into_inner());
             // Runs are sequential: a new recording's header replaces the previous one.
-            if matches!(msg, LogMsg::SetStoreInfo(_)) {
+            if Self::starts_run(&msg) {
                 header.clear();
             }
             header.push(msg.clone());

@@ -16,7 +16,7 @@ use crate::model::pmb::PmbLaw;
 use crate::scene::{Condition, InitialVelocity, Scene, SceneError};
 use crate::scheme::standard::{NodeTerms, Standard};
 use crate::solver::{
-    Integrator, Lap, Param, RunState, SimError, SimInfo, Size, StableStep, Stepper,
+    Clock, Integrator, Lap, Param, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
 };
 
 /// Velocity-Verlet's stages, in the order `step()` runs them.
@@ -690,6 +690,61 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
 
     fn run_mut(&mut self) -> &mut RunState {
         &mut self.run
+    }
+
+    fn save_state(&self) -> State {
+        let mut state = State::default();
+        self.run.clock.save(&mut state);
+        state.put_f64("position", self.positions().as_flattened().to_vec());
+        state.put_f64("velocity", self.velocities().as_flattened().to_vec());
+        state.put_f64("acceleration", self.accelerations().as_flattened().to_vec());
+        let terms = self.terms().iter().flat_map(|t| {
+            t.force
+                .into_iter()
+                .chain([t.energy_density, t.broken_weight])
+        });
+        state.put_f64("terms", terms.collect());
+        state.put_u8("intact", self.intact.clone());
+        state.put_u64("broken", vec![self.broken, self.hybrid_violations]);
+        if let Some(h) = &self.hybrid {
+            h.save(&mut state);
+        }
+        state
+    }
+
+    fn restore_state(&mut self, state: &State) -> Result<(), String> {
+        let n = self.nodes().len();
+        let clock = Clock::restore(state)?;
+        let position = state.f64("position", n * D)?;
+        let velocity = state.f64("velocity", n * D)?;
+        let acceleration = state.f64("acceleration", n * D)?;
+        let terms = state.f64("terms", n * (D + 2))?;
+        let intact = state.u8("intact", self.intact.len())?;
+        let broken = state.u64("broken", 2)?;
+        // Validated in full before anything changes.
+        if let Some(h) = self.hybrid.as_mut() {
+            h.restore(state, &self.discretization.families)?;
+        } else if state.has("hybrid/mask") {
+            return Err("the checkpoint is of a hybrid scene; this scene has none".into());
+        }
+        let c = self.columns;
+        let fields = &mut self.discretization.nodes.fields;
+        let (y, v, a) = fields.triple_mut(c.position, c.velocity, c.acceleration);
+        y.as_flattened_mut().copy_from_slice(position);
+        v.as_flattened_mut().copy_from_slice(velocity);
+        a.as_flattened_mut().copy_from_slice(acceleration);
+        for (t, saved) in fields
+            .get_mut(c.terms)
+            .iter_mut()
+            .zip(terms.chunks_exact(D + 2))
+        {
+            t.force.copy_from_slice(&saved[..D]);
+            (t.energy_density, t.broken_weight) = (saved[D], saved[D + 1]);
+        }
+        self.intact.copy_from_slice(intact);
+        (self.broken, self.hybrid_violations) = (broken[0], broken[1]);
+        self.run.clock = clock;
+        Ok(())
     }
 
     fn tune(&mut self, param: Param) -> Result<(), String> {

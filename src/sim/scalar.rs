@@ -22,7 +22,9 @@ use crate::scene::{Condition, Physics, Reference, Scene, SceneError, StepSize};
 use crate::scheme::ScalarOperator;
 use crate::scheme::standard;
 use crate::scheme::wls::{self, Basis};
-use crate::solver::{Integrator, Lap, RunState, SimError, SimInfo, Size, StableStep, Stepper};
+use crate::solver::{
+    Clock, Integrator, Lap, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
+};
 
 /// A static solve's one stage.
 const STATIC_STAGES: &[&str] = &["solve"];
@@ -624,6 +626,48 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
 
     fn run_mut(&mut self) -> &mut RunState {
         &mut self.run
+    }
+
+    fn save_state(&self) -> State {
+        let mut state = State::default();
+        self.run.clock.save(&mut state);
+        state.put_f64("field", self.field().to_vec());
+        if let Some(phase) = self.phase() {
+            state.put_u8("phase", phase.iter().map(|&p| p as u8).collect());
+        }
+        state
+    }
+
+    fn restore_state(&mut self, state: &State) -> Result<(), String> {
+        let n = self.discretization.len();
+        let clock = Clock::restore(state)?;
+        let field = state.f64("field", n)?;
+        let phase = match &self.corrosion {
+            Some(_) => {
+                let saved = state.u8("phase", n)?;
+                let phase: Vec<Phase> = saved
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &p)| match p {
+                        0 => Ok(Phase::Liquid),
+                        1 => Ok(Phase::Solid),
+                        _ => Err(format!("phase: node {i} has no phase {p}")),
+                    })
+                    .collect::<Result<_, _>>()?;
+                Some(phase)
+            }
+            None if state.has("phase") => {
+                return Err("the checkpoint is of a corrosion scene; this scene is not".into());
+            }
+            None => None,
+        };
+        let fields = &mut self.discretization.nodes.fields;
+        fields.get_mut(self.field).copy_from_slice(field);
+        if let (Some(c), Some(phase)) = (&self.corrosion, phase) {
+            fields.get_mut(c.phase).copy_from_slice(&phase);
+        }
+        self.run.clock = clock;
+        Ok(())
     }
 
     fn relative_error(&self) -> Option<f64> {

@@ -2,6 +2,7 @@
 //! that every reader of t (sources, held values, error norms, switching events, frames) reads
 //! the same time, also after Δt changed while running.
 
+use super::state::State;
 use crate::scene::Duration;
 
 /// Step, t, Δt and end. Time is `t₀ + (n − n₀) Δt` since the last Δt change at (t₀, n₀): no
@@ -103,6 +104,30 @@ impl Clock {
     }
 }
 
+impl Clock {
+    /// Into a checkpoint's state.
+    pub fn save(&self, state: &mut State) {
+        state.put_u64(
+            "clock/steps",
+            vec![self.step, self.origin.1, self.total_steps],
+        );
+        state.put_f64("clock/times", vec![self.dt, self.origin.0, self.end]);
+    }
+
+    /// From a checkpoint's state.
+    pub fn restore(state: &State) -> Result<Clock, String> {
+        let steps = state.u64("clock/steps", 3)?;
+        let times = state.f64("clock/times", 3)?;
+        Ok(Clock {
+            step: steps[0],
+            dt: times[0],
+            origin: (times[1], steps[1]),
+            end: times[2],
+            total_steps: steps[2],
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -140,6 +165,17 @@ mod tests {
             c.advance();
         }
         assert_eq!(c.time(), 20.0);
+    }
+
+    #[test]
+    fn a_saved_clock_restores_to_the_same_time() {
+        let mut c = Clock::new(1e-5, Duration::End(0.01));
+        (0..7).for_each(|_| c.advance());
+        c.set_dt(3e-6);
+        c.advance();
+        let mut state = State::default();
+        c.save(&mut state);
+        assert_eq!(Clock::restore(&state).unwrap(), c);
     }
 
     #[test]

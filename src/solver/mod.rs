@@ -7,11 +7,13 @@ pub mod clock;
 pub mod error;
 pub mod setup;
 pub mod stages;
+pub mod state;
 
 pub use clock::Clock;
 pub use error::SimError;
 pub use setup::{Integrator, StableStep};
 pub use stages::{Lap, Stages, StepWall};
+pub use state::State;
 
 use crate::frame::Frame;
 use crate::scene::{Scene, SceneError};
@@ -125,6 +127,12 @@ pub trait Stepper: Send {
     fn info(&self) -> SimInfo;
     fn run(&self) -> &RunState;
     fn run_mut(&mut self) -> &mut RunState;
+    /// What a checkpoint holds: the clock and every array the step reads that the scene does
+    /// not determine (positions, velocities, bond states, masks, fields, phases, …).
+    fn save_state(&self) -> State;
+    /// Continues from a state saved by the same scene: the run goes on bit for bit. An error
+    /// (nothing changed) if the state does not fit this scene.
+    fn restore_state(&mut self, state: &State) -> Result<(), String>;
 
     fn clock(&self) -> &Clock {
         &self.run().clock
