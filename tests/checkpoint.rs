@@ -107,8 +107,11 @@ fn an_adaptive_hybrid_run_with_a_script_resumes_bit_for_bit() {
         "kalthoff-winkler",
         "small-hybrid",
         100,
+        // Fired before the last checkpoint (step 1200 of 1252): in its command log; fired
+        // after it: in its script lines (a Δt change the resumed run must still make).
         Some(
-            "at 60 steps set dt 0.35 stable\nat 150 steps set chi 0.9\nat 200 steps set every 7\n",
+            "at 60 steps set dt 0.35 stable\nat 150 steps set chi 0.9\nat 200 steps set every 7\n\
+             at 1210 steps set dt 0.3 stable\n",
         ),
     );
 }
