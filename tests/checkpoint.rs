@@ -1,6 +1,6 @@
 //! Restarts: a run continued from a checkpoint ends with final fields bit-identical to the
 //! uninterrupted run (dynamics with damage, the adaptive hybrid with a script that changes Δt
-//! and χ, corrosion); damaged, foreign or truncated files are refused with exit code 2; a run
+//! and χ, corrosion on one grid and on two); damaged, foreign or truncated files are refused with exit code 2; a run
 //! killed while writing checkpoints leaves one that resumes.
 
 use std::path::PathBuf;
@@ -119,6 +119,11 @@ fn an_adaptive_hybrid_run_with_a_script_resumes_bit_for_bit() {
 #[test]
 fn a_corrosion_run_resumes_bit_for_bit() {
     resumes_bit_for_bit("corrosion-1d", "small", 150, None);
+}
+
+#[test]
+fn a_multigrid_corrosion_run_resumes_bit_for_bit() {
+    resumes_bit_for_bit("corrosion-1d", "multigrid", 150, None);
 }
 
 #[test]

@@ -99,3 +99,62 @@ impl Phase {
 impl NodeValue for Phase {
     const EMPTY: Self = Phase::Liquid;
 }
+
+/// A node's grid level and role in a multi-grid scene (thesis §3.4): active nodes are
+/// computed; fictitious ones complete the families of active nodes near the interface, their
+/// values interpolated from the other level. Inactive nodes are not stored.
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum GridClass {
+    #[default]
+    CoarseActive = 0,
+    FineActive = 1,
+    CoarseFictitious = 2,
+    FineFictitious = 3,
+}
+
+impl GridClass {
+    /// The `nodes/grid` classes.
+    pub const TABLE: &'static [Class] = &[
+        (
+            GridClass::CoarseActive as u16,
+            "coarse active",
+            [120, 160, 200],
+        ),
+        (GridClass::FineActive as u16, "fine active", [230, 85, 13]),
+        (
+            GridClass::CoarseFictitious as u16,
+            "coarse fictitious",
+            [190, 190, 190],
+        ),
+        (
+            GridClass::FineFictitious as u16,
+            "fine fictitious",
+            [253, 190, 133],
+        ),
+    ];
+
+    pub fn id(self) -> u16 {
+        self as u16
+    }
+
+    pub fn is_fine(self) -> bool {
+        matches!(self, GridClass::FineActive | GridClass::FineFictitious)
+    }
+
+    pub fn is_active(self) -> bool {
+        matches!(self, GridClass::CoarseActive | GridClass::FineActive)
+    }
+
+    pub fn field(class: &[GridClass]) -> ClassField {
+        ClassField {
+            name: "grid",
+            ids: class.iter().map(|c| c.id()).collect(),
+            classes: Self::TABLE,
+        }
+    }
+}
+
+impl NodeValue for GridClass {
+    const EMPTY: Self = GridClass::CoarseActive;
+}

@@ -1,9 +1,11 @@
 //! Adaptations that run between steps and change which scheme (or phase) each node has: the
 //! adaptive hybrid's switching (`hybrid`, filtered by `motion`), the fixed hybrid of corrosion
-//! scenes (`fixed`), the phase change (`phase`), and the typed masks they keep (`masks`).
+//! scenes (`fixed`), the phase change (`phase`), the multi-grid coupling (`multigrid`), and the typed masks they
+//! keep (`masks`).
 
 pub mod fixed;
 pub mod hybrid;
 pub mod masks;
 pub mod motion;
+pub mod multigrid;
 pub mod phase;

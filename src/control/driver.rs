@@ -77,7 +77,30 @@ impl Driver {
         state.run = header.run;
         state.discretization = choice;
         state.chi = header.chi;
-        let mut driver = Driver {
+        let mut driver = Driver::new(state, spec, base, outlet, sim, outputs);
+        driver.open_run(&scene)?;
+        driver.state.every = header.every;
+        driver.message(
+            "info",
+            &format!(
+                "resumed from a checkpoint at step {} (t = {:.4e} s)",
+                driver.steps_done(),
+                driver.time()
+            ),
+        );
+        Ok((driver, header.script()?))
+    }
+
+    /// A session around a built simulation, before its first run is opened.
+    fn new(
+        state: ControlState,
+        spec: RunSpec,
+        base: Scene,
+        outlet: Outlet,
+        sim: Box<dyn Stepper>,
+        outputs: Outputs,
+    ) -> Driver {
+        Driver {
             state,
             outputs,
             vtu: None,
@@ -92,18 +115,7 @@ impl Driver {
             frame_seconds: 0.0,
             last_frame: None,
             rate_mark: (Instant::now(), 0),
-        };
-        driver.open_run(&scene)?;
-        driver.state.every = header.every;
-        driver.message(
-            "info",
-            &format!(
-                "resumed from a checkpoint at step {} (t = {:.4e} s)",
-                driver.steps_done(),
-                driver.time()
-            ),
-        );
-        Ok((driver, header.script()?))
+        }
     }
 
     /// Writes a checkpoint of the session as it stands (between steps): the run description
@@ -139,22 +151,7 @@ impl Driver {
         let base = spec.scene().map_err(|e| e.to_string())?;
         let sim = sim::build(&base).map_err(|e| e.to_string())?;
         let state = ControlState::for_scene(session, &sim.info(), &base);
-        let mut driver = Driver {
-            state,
-            outputs,
-            vtu: None,
-            spec,
-            base,
-            outlet,
-            sim,
-            sink: None,
-            pending: 0,
-            started: Instant::now(),
-            frames: 0,
-            frame_seconds: 0.0,
-            last_frame: None,
-            rate_mark: (Instant::now(), 0),
-        };
+        let mut driver = Driver::new(state, spec, base, outlet, sim, outputs);
         let scene = driver.base.clone();
         driver.open_run(&scene)?;
         Ok(driver)

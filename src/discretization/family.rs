@@ -8,7 +8,7 @@ use crate::scene::{CrackGeometry, FamilyRadius};
 
 /// Families of all nodes in compressed sparse rows: node i's neighbors are
 /// `neighbors[offsets[i]..offsets[i + 1]]`, with the reference bond length beside each.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub struct Families {
     pub offsets: Vec<usize>,
     pub neighbors: Vec<u32>,
@@ -79,6 +79,24 @@ impl Families {
             },
         );
         assert!(neighbors.iter().all(|&j| (j as usize) < positions.len()));
+        Families {
+            offsets,
+            neighbors,
+            lengths,
+        }
+    }
+
+    /// The families of two node sets side by side: `b`'s nodes numbered after `a`'s, no bond
+    /// between the sets (the two levels of a multi-grid scene).
+    pub fn concat(a: &Families, b: &Families) -> Families {
+        let shift = a.node_count() as u32;
+        let base = a.bond_count();
+        let mut offsets = a.offsets.clone();
+        offsets.extend(b.offsets[1..].iter().map(|o| o + base));
+        let mut neighbors = a.neighbors.clone();
+        neighbors.extend(b.neighbors.iter().map(|j| j + shift));
+        let mut lengths = a.lengths.clone();
+        lengths.extend_from_slice(&b.lengths);
         Families {
             offsets,
             neighbors,

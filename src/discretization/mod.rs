@@ -108,6 +108,26 @@ impl<const D: usize> Discretization<D> {
         })
     }
 
+    /// A discretization of given nodes and families (several grid levels in one index space);
+    /// the quadrature is the scene's (the coarse level's).
+    pub fn of_nodes(
+        scene: &Scene,
+        positions: Vec<[f64; D]>,
+        volumes: Vec<f64>,
+        families: Families,
+    ) -> Result<Self, SceneError> {
+        let layers = layers::select(scene, &positions)?;
+        Ok(Discretization {
+            nodes: Nodes::new(positions, volumes),
+            families,
+            quadrature: Quadrature::of_scene(scene),
+            horizon: Horizon::Uniform(scene.horizon),
+            spacing: scene.spacing,
+            uniform_volume: None,
+            layers,
+        })
+    }
+
     pub fn len(&self) -> usize {
         self.nodes.len()
     }

@@ -51,6 +51,10 @@ fn roles(scene: &Scene) -> Roles {
         masks.push("scheme");
         plots.push(("Ω_s fraction", "/metrics/hybrid/omega_s_fraction"));
     }
+    if scene.multigrid.is_some() {
+        masks.push("grid");
+        plots.push(("grid levels", "/metrics/grid/**"));
+    }
     Roles { main, masks, plots }
 }
 

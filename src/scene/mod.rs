@@ -49,6 +49,8 @@ pub struct Scene {
     pub reference: Option<Reference>,
     /// Hybrid schemes only.
     pub hybrid: Option<HybridSpec>,
+    /// Multi-grid scenes only.
+    pub multigrid: Option<MultigridSpec>,
     pub precracks: Vec<CrackGeometry>,
     pub boundary: Vec<BoundarySpec>,
     pub initial_velocity: Vec<InitialVelocity>,
@@ -106,6 +108,13 @@ pub struct HybridSpec {
     pub chi: f64,
     pub check: CheckSet,
     pub check_every: u64,
+}
+
+/// A predefined fine region refined `ratio` times (thesis §3.4).
+#[derive(Debug, Clone)]
+pub struct MultigridSpec {
+    pub ratio: usize,
+    pub region: Solid,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -38,6 +38,8 @@ pub struct Preset {
     /// Hybrid schemes: the initial Ω_s band, the switching margin χ and the check policy.
     #[serde(default)]
     pub hybrid: HybridTable,
+    /// Multi-grid: a fine region refined `ratio` times (diffusion and corrosion scenes).
+    pub multigrid: Option<MultigridTable>,
     /// A manufactured solution: gives the body force or source, the values held in
     /// `hold_reference` layers, and the error norm (3.79) reported in frames.
     pub reference: Option<ReferenceSpec>,
@@ -70,6 +72,17 @@ pub struct Discretization {
     /// papers' choice for the basis order and dimension (collocation sets of 5/11/13 in 1D,
     /// 29/49 in 2D, 123 in 3D).
     pub collocation_factor: Option<usize>,
+}
+
+/// A predefined fine region (thesis §3.4): coarse cells whose node lies in `region` are split
+/// into `ratio`ᵈ fine cells; `discretization.spacing` is the coarse spacing Δx⁺.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MultigridTable {
+    /// The grid ratio Δx⁺/Δx⁻, a whole number.
+    pub ratio: usize,
+    /// The fine region Ω⁻.
+    pub region: Shape,
 }
 
 #[derive(Debug, Clone, Deserialize)]

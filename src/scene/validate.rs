@@ -171,6 +171,7 @@ pub(super) fn validate(
             ),
         ));
     }
+    let multigrid = multigrid(p, ctx, dim, physics, scheme.kind, perturbation)?;
     let reference = p
         .reference
         .as_ref()
@@ -277,6 +278,7 @@ pub(super) fn validate(
         reference,
         diffusion,
         hybrid,
+        multigrid,
         seed: d.seed,
         family_radius: d.family_radius,
         volume_correction: d.volume_correction,
@@ -289,6 +291,60 @@ pub(super) fn validate(
         output_every: p.output.every,
         crack_angles,
     })
+}
+
+/// The fine region of a multi-grid scene: a whole grid ratio in 2..=16, on the standard scheme
+/// of a diffusion or corrosion scene (the multi-adaptive dynamics is not built yet), on an
+/// unperturbed lattice (the fine cells split the coarse ones).
+fn multigrid(
+    p: &Preset,
+    ctx: &ErrorContext,
+    dim: usize,
+    physics: Physics,
+    kind: SchemeKind,
+    perturbation: [f64; 2],
+) -> Result<Option<MultigridSpec>, SceneError> {
+    let Some(m) = &p.multigrid else {
+        return Ok(None);
+    };
+    if !(2..=16).contains(&m.ratio) {
+        return Err(ctx.error(
+            "multigrid.ratio",
+            format!(
+                "the grid ratio Δx⁺/Δx⁻ must be a whole number in 2..=16, got {}",
+                m.ratio
+            ),
+        ));
+    }
+    if !matches!(physics, Physics::Diffusion | Physics::Corrosion) {
+        return Err(ctx.error(
+            "multigrid",
+            "a predefined fine region is available for physics = \"diffusion\" and \"corrosion\"",
+        ));
+    }
+    if kind != SchemeKind::Standard {
+        return Err(ctx.error(
+            "discretization.scheme",
+            format!(
+                "\"{}\": a multi-grid scene runs the standard scheme on both levels",
+                kind.name()
+            ),
+        ));
+    }
+    if perturbation != [0.0, 0.0] {
+        return Err(ctx.error(
+            "discretization.perturbation",
+            "a multi-grid scene needs an unperturbed lattice (fine cells split the coarse ones)",
+        ));
+    }
+    let region = m
+        .region
+        .to_solid(dim, "multigrid.region")
+        .map_err(|e| ctx.from_path_message(&e))?;
+    Ok(Some(MultigridSpec {
+        ratio: m.ratio,
+        region,
+    }))
 }
 
 fn positive(ctx: &ErrorContext, field: &str, v: f64) -> Result<f64, SceneError> {

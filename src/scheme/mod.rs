@@ -50,6 +50,17 @@ impl ScalarOperator {
         }
     }
 
+    /// `a`'s rows then `b`'s (over one node index space).
+    pub fn concat(a: ScalarOperator, b: ScalarOperator) -> ScalarOperator {
+        let base = a.columns.len();
+        let mut out = a;
+        out.rows.extend(b.rows);
+        out.offsets.extend(b.offsets[1..].iter().map(|o| o + base));
+        out.columns.extend(b.columns);
+        out.weights.extend(b.weights);
+        out
+    }
+
     /// out[r] = Σ_j w_rj values[j], one entry per row, in parallel.
     pub fn apply_rows(&self, values: &[f64], out: &mut [f64]) {
         out.par_iter_mut().enumerate().for_each(|(r, o)| {

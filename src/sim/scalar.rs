@@ -9,7 +9,8 @@
 use rayon::prelude::*;
 
 use crate::adapt::fixed::{self, FixedHybrid};
-use crate::adapt::masks::{Phase, SchemeClass};
+use crate::adapt::masks::{GridClass, Phase, SchemeClass};
+use crate::adapt::multigrid::MultiGrid;
 use crate::adapt::phase::PhaseChange;
 use crate::discretization::{Discretization, Families, Field, Quadrature};
 use crate::frame::{Frame, NodeField};
@@ -28,7 +29,8 @@ use crate::solver::{
 
 /// A static solve's one stage.
 const STATIC_STAGES: &[&str] = &["solve"];
-/// Forward Euler's stages, in the order `step()` runs them.
+/// Forward Euler's stages, in the order `step()` runs them (`hold`: held values and a
+/// multi-grid scene's fictitious values).
 const EULER_STAGES: &[&str] = &["rates", "update", "hold", "phase_change"];
 const RATES: usize = 0;
 const UPDATE: usize = 1;
@@ -62,6 +64,11 @@ pub struct ScalarSimulation<const D: usize> {
     reference: Option<Reference>,
     corrosion: Option<Corrosion>,
     hybrid: Option<FixedHybrid>,
+    /// Multi-grid scenes: the levels' classes and the fictitious nodes' interpolation.
+    multigrid: Option<MultiGrid<D>>,
+    /// Each node's volume where it is active (0 on fictitious nodes): Σ C V over these is the
+    /// total.
+    active_volumes: Vec<f64>,
     run: RunState,
     /// |field| scale for the color range and the divergence check.
     amplitude: f64,
@@ -201,7 +208,17 @@ fn euler_stable_step(
 
 impl<const D: usize> ScalarSimulation<D> {
     pub fn new(scene: &Scene) -> Result<Self, SceneError> {
-        let mut discretization = Discretization::<D>::of_scene(scene)?;
+        let (mut discretization, multigrid) = match &scene.multigrid {
+            None => (Discretization::<D>::of_scene(scene)?, None),
+            Some(spec) => {
+                let mut grid = MultiGrid::<D>::build(scene, spec)?;
+                let positions = std::mem::take(&mut grid.positions);
+                let volumes = std::mem::take(&mut grid.volumes);
+                let families = std::mem::take(&mut grid.families);
+                let d = Discretization::of_nodes(scene, positions, volumes, families)?;
+                (d, Some(grid))
+            }
+        };
         let n = discretization.len();
         let mut is_held = vec![false; n];
         for (layer, nodes) in scene.boundary.iter().zip(&discretization.layers) {
@@ -209,7 +226,19 @@ impl<const D: usize> ScalarSimulation<D> {
                 nodes.iter().for_each(|&i| is_held[i as usize] = true);
             }
         }
-        let (free, held): (Vec<u32>, Vec<u32>) = (0..n as u32).partition(|&i| !is_held[i as usize]);
+        // Fictitious nodes of a multi-grid scene are neither solved nor held: interpolated.
+        let active = |i: u32| {
+            multigrid
+                .as_ref()
+                .is_none_or(|g| g.class[i as usize].is_active())
+        };
+        let (free, held): (Vec<u32>, Vec<u32>) = (0..n as u32)
+            .filter(|&i| active(i) || is_held[i as usize])
+            .partition(|&i| !is_held[i as usize]);
+        let active_volumes = match &multigrid {
+            Some(g) => g.active_volumes(discretization.nodes.volumes()),
+            None => discretization.nodes.volumes().to_vec(),
+        };
         if free.is_empty() {
             return Err(scene.error(
                 "boundary",
@@ -218,7 +247,10 @@ impl<const D: usize> ScalarSimulation<D> {
         }
         let positions = discretization.nodes.reference();
         let volumes = discretization.nodes.volumes();
-        let field = initial_field(scene, positions, &discretization.layers);
+        let mut field = initial_field(scene, positions, &discretization.layers);
+        if let Some(g) = &multigrid {
+            g.transfer(&mut field);
+        }
         let kernel = kernel(scene, D);
         let corrosion = scene.diffusion.and_then(|d| d.corrosion).map(|c| {
             let law = CorrosionLaw {
@@ -226,7 +258,7 @@ impl<const D: usize> ScalarSimulation<D> {
                 kappa_interface: c.interface_diffusivity,
                 saturation: c.saturation,
             };
-            let (change, phase) = PhaseChange::initial(&law, &field, volumes);
+            let (change, phase) = PhaseChange::initial(&law, &field, &active_volumes);
             (law, change, phase)
         });
         let hybrid = match (&scene.hybrid, &corrosion) {
@@ -261,15 +293,35 @@ impl<const D: usize> ScalarSimulation<D> {
             },
             None => kernel,
         };
-        let operator = assemble(
-            scene,
-            positions,
-            volumes,
-            &discretization.families,
-            &assembled,
-            &standard_rows,
-        )
-        .map_err(|m| scene.error("discretization.collocation_factor", m))?;
+        let operator = match &multigrid {
+            // Each level's rows with its own quadrature (β of its spacing).
+            Some(g) => {
+                let level = |fine: bool, quadrature: &Quadrature| {
+                    let rows: Vec<u32> = standard_rows
+                        .iter()
+                        .copied()
+                        .filter(|&i| g.class[i as usize].is_fine() == fine)
+                        .collect();
+                    standard::diffusion_operator::<D>(
+                        &rows,
+                        volumes,
+                        &discretization.families,
+                        quadrature,
+                        &assembled,
+                    )
+                };
+                ScalarOperator::concat(level(false, &g.coarse), level(true, &g.fine))
+            }
+            None => assemble(
+                scene,
+                positions,
+                volumes,
+                &discretization.families,
+                &assembled,
+                &standard_rows,
+            )
+            .map_err(|m| scene.error("discretization.collocation_factor", m))?,
+        };
         let amplitude = scene
             .reference
             .map_or(0.0, |r| r.amplitude(positions.iter().map(|x| x.as_slice())))
@@ -304,6 +356,8 @@ impl<const D: usize> ScalarSimulation<D> {
             reference: scene.reference,
             corrosion,
             hybrid,
+            multigrid,
+            active_volumes,
             run,
             amplitude,
             events: Vec::new(),
@@ -321,6 +375,19 @@ impl<const D: usize> ScalarSimulation<D> {
 
     pub fn positions(&self) -> &[[f64; D]] {
         self.discretization.nodes.reference()
+    }
+
+    /// Sets the field (tests, restarts): `values` per node, a multi-grid scene's fictitious
+    /// values replaced by their interpolation from the other level.
+    pub fn set_field(&mut self, values: &mut [f64]) {
+        if let Some(g) = &self.multigrid {
+            g.transfer(values);
+        }
+        self.discretization
+            .nodes
+            .fields
+            .get_mut(self.field)
+            .copy_from_slice(values);
     }
 
     pub fn operator(&self) -> &ScalarOperator {
@@ -486,17 +553,27 @@ impl<const D: usize> ScalarSimulation<D> {
     fn corrosion_frame(&self, scalars: &mut Vec<(String, f64)>) -> Vec<crate::frame::ClassField> {
         let mut classes = Vec::new();
         if let (Some(c), Some(phase)) = (&self.corrosion, self.phase()) {
-            let volumes = self.discretization.nodes.volumes();
             scalars.push((
                 "corrosion/volume_loss".to_string(),
-                c.change.volume_loss(phase, volumes),
+                c.change.volume_loss(phase, &self.active_volumes),
             ));
-            let solid = phase.iter().filter(|p| p.is_solid()).count();
+            let solid = phase
+                .iter()
+                .zip(&self.active_volumes)
+                .filter(|(p, v)| p.is_solid() && **v > 0.0)
+                .count();
             scalars.push(("corrosion/solid_nodes".to_string(), solid as f64));
             if let Some(h) = &self.hybrid {
                 scalars.push(("hybrid/violations".to_string(), h.violations(phase) as f64));
             }
             classes.push(Phase::field(phase));
+        }
+        if let Some(g) = &self.multigrid {
+            let (coarse, fine, fictitious) = g.counts();
+            scalars.push(("grid/coarse_active".to_string(), coarse as f64));
+            scalars.push(("grid/fine_active".to_string(), fine as f64));
+            scalars.push(("grid/fictitious".to_string(), fictitious as f64));
+            classes.push(GridClass::field(&g.class));
         }
         if let Some(h) = &self.hybrid {
             scalars.push((
@@ -524,6 +601,10 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
         let max_value = self.euler_update(t);
         lap.charge(&mut self.run.stages, UPDATE);
         self.hold_reference(self.run.clock.next_time());
+        // The fictitious nodes of a multi-grid scene take their values from the other level.
+        if let Some(g) = &self.multigrid {
+            g.transfer(self.discretization.nodes.fields.get_mut(self.field));
+        }
         lap.charge(&mut self.run.stages, HOLD);
         self.change_phases();
         lap.charge(&mut self.run.stages, PHASE_CHANGE);
@@ -554,7 +635,7 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
         });
         let integral: f64 = field
             .iter()
-            .zip(self.discretization.nodes.volumes())
+            .zip(&self.active_volumes)
             .map(|(c, v)| c * v)
             .sum();
         let mut scalars = vec![("field/integral".to_string(), integral)];
