@@ -17,7 +17,7 @@ fi
 command -v rerun >/dev/null || pip install -q 'rerun-sdk==0.36.3'
 
 # The panel: rendered by the snapshot test, written to tests/snapshots/panel.png.
-UPDATE_SNAPSHOTS=1 cargo test --release --test panel panel_snapshot
+UPDATE_SNAPSHOTS=1 cargo test --release --test suite panel::panel_snapshot
 cp tests/snapshots/panel.png screenshots/panel.png
 
 # The viewer: a hybrid-adaptive Kalthoff–Winkler run with a command script (χ, Δt, and a

@@ -34,6 +34,9 @@ pub struct Header {
     pub m: f64,
     pub dx: f64,
     pub scheme: String,
+    /// The grid ratio of a multi-grid scene.
+    #[serde(default)]
+    pub ratio: Option<usize>,
     /// The frame cadence.
     pub every: u64,
     pub chi: f64,
@@ -53,6 +56,7 @@ impl Header {
             m: self.m,
             dx: self.dx,
             scheme: self.scheme.clone(),
+            ratio: self.ratio,
         }
     }
 
@@ -221,6 +225,7 @@ mod tests {
                 m: 4.0,
                 dx: 1e-3,
                 scheme: "standard".into(),
+                ratio: None,
                 every: 10,
                 chi: 0.95,
                 script: vec!["at 20 steps set chi 0.9".into()],

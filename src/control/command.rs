@@ -2,7 +2,8 @@
 //!
 //! The text form is the one scripts use and recordings store: `play`, `pause`, `step [N]`,
 //! `reset`, `set chi 0.9`, `set dt 2 ns [override]`, `set dt 0.5 stable`, `set m 3 [restart]`,
-//! `set dx 0.5 mm [restart]`, `set scheme standard [restart]`, `set every 10`,
+//! `set dx 0.5 mm [restart]`, `set scheme standard [restart]`, `set ratio 2 [restart]`,
+//! `set every 10`,
 //! `save start FILE.rrd`, `save stop`. `Display` writes the canonical text, which parses back
 //! to the same command.
 
@@ -39,6 +40,8 @@ pub enum Command {
     SetSpacing(f64),
     /// Spatial scheme by its preset name (rebuild).
     SetScheme(String),
+    /// Grid ratio Δx⁺/Δx⁻ of a multi-grid scene (rebuild).
+    SetGridRatio(usize),
     /// Log a frame every this many steps.
     SetEvery(u64),
     StartSaving(PathBuf),
@@ -56,6 +59,7 @@ pub enum Command {
 pub const FORMS: &str = "play, pause, step [N], reset, set chi X, set dt VALUE [override] \
                          (VALUE: a time like `2 ns` or `0.5 stable`), set m X [restart], \
                          set dx LENGTH [restart], set scheme NAME [restart], set every K, \
+                         set ratio N [restart], \
                          save start FILE.rrd, save stop, replay FILE.rrd, \
                          load PRESET [VARIANT]";
 
@@ -68,6 +72,7 @@ impl Command {
                 | Command::SetHorizonFactor(_)
                 | Command::SetSpacing(_)
                 | Command::SetScheme(_)
+                | Command::SetGridRatio(_)
         )
     }
 
@@ -129,6 +134,13 @@ impl Command {
                     .map_err(|e| format!("dx: {e} (e.g. `set dx 0.5 mm`)"))?;
                 Ok(Command::SetSpacing(dx))
             }
+            ["set", "ratio", ..] => match strip_restart(2).as_slice() {
+                [v] => v
+                    .parse::<usize>()
+                    .map(Command::SetGridRatio)
+                    .map_err(|_| format!("ratio: expected a whole number (Δx⁺/Δx⁻), got `{v}`")),
+                _ => Err("set ratio: expected one whole number, e.g. `set ratio 2 restart`".into()),
+            },
             ["set", "scheme", ..] => match strip_restart(2).as_slice() {
                 [name] => Ok(Command::SetScheme(name.to_string())),
                 _ => Err("set scheme: expected one name, e.g. `set scheme standard`".into()),
@@ -157,7 +169,7 @@ impl Command {
                 })
             }
             ["set", what, ..] => Err(format!(
-                "unknown setting `{what}`; allowed: chi, dt, m, dx, scheme, every"
+                "unknown setting `{what}`; allowed: chi, dt, m, dx, scheme, every, ratio"
             )),
             [first, ..] => {
                 let known = [
@@ -221,6 +233,7 @@ impl fmt::Display for Command {
             Command::SetHorizonFactor(m) => write!(f, "set m {m:?} restart"),
             Command::SetSpacing(dx) => write!(f, "set dx {dx:?} m restart"),
             Command::SetScheme(s) => write!(f, "set scheme {s} restart"),
+            Command::SetGridRatio(r) => write!(f, "set ratio {r} restart"),
             Command::SetEvery(k) => write!(f, "set every {k}"),
             Command::StartSaving(p) => write!(f, "save start {}", p.display()),
             Command::StopSaving => write!(f, "save stop"),
@@ -284,6 +297,7 @@ mod tests {
             "set m 3.0 restart",
             "set dx 0.0005 m restart",
             "set scheme standard restart",
+            "set ratio 2 restart",
             "set every 7",
             "save start a.rrd",
             "save stop",

@@ -129,6 +129,7 @@ impl Driver {
             m: d.m,
             dx: d.dx,
             scheme: d.scheme.clone(),
+            ratio: d.ratio,
             every: self.state.every,
             chi: self.state.chi,
             script: remaining.iter().map(Timed::to_line).collect(),

@@ -31,6 +31,7 @@ pub fn discretization_of(scene: &Scene) -> Discretization {
         m: scene.horizon / scene.spacing,
         dx: scene.spacing,
         scheme,
+        ratio: scene.multigrid.as_ref().map(|g| g.ratio),
     }
 }
 
@@ -47,7 +48,8 @@ pub fn with_discretization(base: &Scene, choice: &Discretization) -> Result<Scen
     if choice.scheme != own.scheme {
         overrides.insert("scheme".into(), choice.scheme.clone().into());
     }
-    if overrides.is_empty() {
+    let ratio = choice.ratio.filter(|_| choice.ratio != own.ratio);
+    if overrides.is_empty() && ratio.is_none() {
         return Ok(base.clone());
     }
     let invalid = |message: String| SceneError {
@@ -74,11 +76,21 @@ pub fn with_discretization(base: &Scene, choice: &Discretization) -> Result<Scen
     let Some(discretization) = discretization.as_table_mut() else {
         return Err(invalid("`discretization` is not a table".into()));
     };
-    let changed: Vec<String> = overrides
+    let mut changed: Vec<String> = overrides
         .keys()
         .map(|k| format!("discretization.{k}"))
         .collect();
     discretization.extend(overrides);
+    if let Some(r) = ratio {
+        let multigrid = target
+            .entry("multigrid")
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        let Some(multigrid) = multigrid.as_table_mut() else {
+            return Err(invalid("`multigrid` is not a table".into()));
+        };
+        multigrid.insert("ratio".into(), toml::Value::Integer(r as i64));
+        changed.push("multigrid.ratio".into());
+    }
     let text = toml::to_string(&table).map_err(|e| invalid(e.to_string()))?;
     // `--set` overrides still apply, except those of the values this rebuild changes.
     let kept: Vec<String> = base
@@ -142,6 +154,25 @@ mod tests {
             "m kept: {}",
             fine.horizon
         );
+    }
+
+    #[test]
+    fn a_grid_ratio_choice_rebuilds_the_fine_region() {
+        let base = Scene::load("corrosion-1d", Some("multigrid")).unwrap();
+        let own = discretization_of(&base);
+        assert_eq!(own.ratio, Some(4));
+        let two = with_discretization(
+            &base,
+            &Discretization {
+                ratio: Some(2),
+                ..own
+            },
+        )
+        .unwrap();
+        assert_eq!(two.multigrid.as_ref().unwrap().ratio, 2);
+        assert_eq!(two.spacing, base.spacing);
+        let plain = Scene::load("corrosion-1d", None).unwrap();
+        assert_eq!(discretization_of(&plain).ratio, None);
     }
 
     #[test]

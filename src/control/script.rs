@@ -54,7 +54,7 @@ impl std::error::Error for ScriptError {}
 
 /// Commands a headless script may give (a headless run always plays).
 pub const SCRIPT_COMMANDS: &str = "set chi X, set dt VALUE [override], set m X [restart], set dx LENGTH [restart], \
-     set scheme NAME [restart], set every K, reset";
+     set scheme NAME [restart], set ratio N [restart], set every K, reset";
 
 /// Time units and how many of them make a second (dividing keeps `20 us` = 2e-5 exactly).
 const TIME_UNITS: &[(&str, f64)] = &[

@@ -45,6 +45,8 @@ pub struct Discretization {
     /// Lattice spacing Δx (m).
     pub dx: f64,
     pub scheme: String,
+    /// Grid ratio Δx⁺/Δx⁻ of a multi-grid scene (None: one grid).
+    pub ratio: Option<usize>,
 }
 
 /// Live figures shown by the panel, updated from frames.
@@ -283,6 +285,21 @@ impl ControlState {
                 }
                 Effect::Rebuild
             }
+            Command::SetGridRatio(r) => {
+                if self.discretization.ratio.is_none() {
+                    return Err(
+                        "this scene has one grid: the grid ratio applies to scenes with a \
+                                [multigrid] fine region"
+                            .into(),
+                    );
+                }
+                if !(2..=16).contains(r) {
+                    return Err(format!(
+                        "the grid ratio must be a whole number in 2..=16, got {r}"
+                    ));
+                }
+                Effect::Rebuild
+            }
             Command::SetScheme(name) => {
                 check_scheme(name)?;
                 Effect::Rebuild
@@ -337,6 +354,7 @@ impl ControlState {
             Command::SetHorizonFactor(m) => self.discretization.m = *m,
             Command::SetSpacing(dx) => self.discretization.dx = *dx,
             Command::SetScheme(s) => self.discretization.scheme = s.clone(),
+            Command::SetGridRatio(r) => self.discretization.ratio = Some(*r),
             Command::SetEvery(k) => self.every = *k,
             Command::StartSaving(p) => self.saving = Some(p.clone()),
             Command::StopSaving => self.saving = None,
@@ -394,6 +412,7 @@ mod tests {
                 m: 4.0,
                 dx: 1e-3,
                 scheme: "standard".into(),
+                ratio: None,
             },
             crate::scene::DEFAULT_CHI,
         )
@@ -588,6 +607,7 @@ mod tests {
                 "does not exist",
             ),
             (Command::StopSaving, "not saving"),
+            (Command::SetGridRatio(2), "one grid"),
             (Command::SetScheme("nope".into()), "standard"),
             (Command::Replay("/no/such.rrd".into()), "no recording"),
         ];

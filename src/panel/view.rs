@@ -16,6 +16,8 @@ pub struct PanelInputs {
     pub m: f64,
     pub dx_mm_text: String,
     pub scheme: String,
+    /// The grid ratio of a multi-grid scene.
+    pub ratio: usize,
     pub every: u64,
     pub save_path: String,
     /// The preset and variant picked for `Load` ("" for the preset's base).
@@ -27,9 +29,22 @@ pub struct PanelInputs {
     /// A parse error of the panel's own fields (the state's `message` shows refusals).
     pub error: Option<String>,
     /// The state values the buffers were last filled from.
-    seen: Option<(u32, u64, u64, u64, u64, String, u64)>,
+    seen: Option<SeenState>,
     /// The session the picker was last filled from.
     seen_session: Option<String>,
+}
+
+/// The state values the edit buffers mirror (floats by their bits, so equality is exact).
+#[derive(Debug, Clone, PartialEq)]
+struct SeenState {
+    run: u32,
+    chi: u64,
+    dt: u64,
+    m: u64,
+    dx: u64,
+    scheme: String,
+    every: u64,
+    ratio: Option<usize>,
 }
 
 /// Schemes offered by the picker (the preset schema's names).
@@ -52,15 +67,16 @@ impl PanelInputs {
             self.seen_session = Some(state.session.clone());
         }
         let d = &state.discretization;
-        let now = (
-            state.run,
-            state.chi.to_bits(),
-            state.dt.to_bits(),
-            d.m.to_bits(),
-            d.dx.to_bits(),
-            d.scheme.clone(),
-            state.every,
-        );
+        let now = SeenState {
+            run: state.run,
+            chi: state.chi.to_bits(),
+            dt: state.dt.to_bits(),
+            m: d.m.to_bits(),
+            dx: d.dx.to_bits(),
+            scheme: d.scheme.clone(),
+            every: state.every,
+            ratio: d.ratio,
+        };
         if self.seen.as_ref() == Some(&now) {
             return;
         }
@@ -69,6 +85,7 @@ impl PanelInputs {
         self.m = d.m;
         self.dx_mm_text = format!("{}", d.dx * 1e3);
         self.scheme = d.scheme.clone();
+        self.ratio = d.ratio.unwrap_or(0);
         self.every = state.every;
         if self.save_path.is_empty() {
             self.save_path = format!("{}.rrd", state.recording_id());
@@ -282,6 +299,12 @@ fn rebuild_parameters(
                 }
             });
         ui.end_row();
+        if state.discretization.ratio.is_some() {
+            let label = ui.label("grid ratio Δx⁺/Δx⁻");
+            ui.add(egui::DragValue::new(&mut inputs.ratio).range(2..=16))
+                .labelled_by(label.id);
+            ui.end_row();
+        }
     });
     if ui.button("Rebuild").clicked() {
         let d = &state.discretization;
@@ -300,6 +323,9 @@ fn rebuild_parameters(
         }
         if inputs.scheme != d.scheme {
             out.push(Command::SetScheme(inputs.scheme.clone()));
+        }
+        if d.ratio.is_some_and(|r| r != inputs.ratio) {
+            out.push(Command::SetGridRatio(inputs.ratio));
         }
     }
 }

@@ -1,6 +1,6 @@
 //! Time integration: energy and momentum conservation, blow-up detection, bond failure.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;

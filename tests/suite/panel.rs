@@ -34,6 +34,7 @@ fn model() -> Model {
             m: 4.0,
             dx: 1e-3,
             scheme: "standard".into(),
+            ratio: None,
         },
         peridyn::scene::DEFAULT_CHI,
     );

@@ -1,7 +1,7 @@
 //! Patch tests of the standard bond-based operator: rigid motions give no force, a homogeneous
 //! strain gives no net force on bulk nodes and the classical strain-energy density.
 
-mod common;
+use crate::common;
 
 use peridyn::model::pmb::Plane;
 use peridyn::model::pmb::poisson_ratio;

@@ -203,3 +203,21 @@ fn loading_another_preset_starts_a_new_session() {
         "logged once"
     );
 }
+
+/// The grid ratio of a multi-grid scene is a rebuild: the next run has the new fine level
+/// (61 refined coarse cells of `corrosion-1d multigrid` split 2 ways instead of 4).
+#[test]
+fn a_grid_ratio_command_rebuilds_the_fine_level() {
+    let scene = Scene::load("corrosion-1d", Some("multigrid")).unwrap();
+    let outlet = Outlet::open(&RecordTarget::File(temp("ratio.rrd"))).unwrap();
+    let mut d = Driver::start(RunSpec::new(&scene, Some(10), None), outlet, "ratio").unwrap();
+    assert_eq!(d.state.discretization.ratio, Some(4));
+    steps(&mut d, 3);
+    d.command(Command::SetGridRatio(2)).unwrap();
+    assert_eq!(d.state.run, 2, "a new run");
+    assert_eq!(d.state.discretization.ratio, Some(2));
+    assert_eq!(d.info().nodes, 140 + 122 + 2 * (4 + 2));
+    let refused = d.command(Command::SetGridRatio(40)).unwrap_err();
+    assert!(refused.contains("2..=16"), "{refused}");
+    d.finish(false, None).unwrap();
+}

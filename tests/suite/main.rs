@@ -1,0 +1,23 @@
+//! The integration tests as one binary, each file a module: the dependency graph is linked
+//! once instead of once per file, which keeps the CI build within its time.
+
+mod common;
+
+mod architecture;
+mod checkpoint;
+mod cli;
+mod clock;
+mod control_cli;
+mod corrosion;
+mod diffusion_manufactured;
+mod driver;
+mod dynamics;
+mod export;
+mod hybrid;
+mod kalthoff_winkler;
+mod multigrid;
+mod operators;
+mod panel;
+mod remote;
+mod static_1d_manufactured;
+mod wls_elasticity;
