@@ -32,9 +32,34 @@ pub struct Frame {
     pub events: Vec<String>,
     /// Scalar series: `(name, value)`, names are slash paths like `energy/kinetic`.
     pub scalars: Vec<(String, f64)>,
+    /// Each node's drawing radius (m), half its cell; empty: half the scene's spacing for all
+    /// (grid levels of a multi-grid scene draw at their own size).
+    pub radii: Vec<f32>,
 }
 
 impl Frame {
+    /// Keeps the nodes whose `keep` entry is set, in every per-node array.
+    pub fn retain_nodes(&mut self, keep: &[bool]) {
+        fn filter<T: Copy>(values: &[T], keep: &[bool], per_node: usize) -> Vec<T> {
+            values
+                .chunks_exact(per_node)
+                .zip(keep)
+                .filter(|(_, k)| **k)
+                .flat_map(|(v, _)| v.iter().copied())
+                .collect()
+        }
+        self.positions = filter(&self.positions, keep, self.dim);
+        for f in &mut self.fields {
+            f.values = filter(&f.values, keep, 1);
+        }
+        for c in &mut self.classes {
+            c.ids = filter(&c.ids, keep, 1);
+        }
+        if !self.radii.is_empty() {
+            self.radii = filter(&self.radii, keep, 1);
+        }
+    }
+
     pub fn scalar(&self, name: &str) -> Option<f64> {
         self.scalars
             .iter()

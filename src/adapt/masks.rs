@@ -102,7 +102,8 @@ impl NodeValue for Phase {
 
 /// A node's grid level and role in a multi-grid scene (thesis §3.4): active nodes are
 /// computed; fictitious ones complete the families of active nodes near the interface, their
-/// values interpolated from the other level. Inactive nodes are not stored.
+/// values interpolated from the other level. Inactive nodes (stored only by the multi-adaptive
+/// scheme, whose fine level covers the body) are neither computed nor drawn.
 #[repr(u8)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
 pub enum GridClass {
@@ -111,6 +112,8 @@ pub enum GridClass {
     FineActive = 1,
     CoarseFictitious = 2,
     FineFictitious = 3,
+    CoarseInactive = 4,
+    FineInactive = 5,
 }
 
 impl GridClass {
@@ -139,11 +142,34 @@ impl GridClass {
     }
 
     pub fn is_fine(self) -> bool {
-        matches!(self, GridClass::FineActive | GridClass::FineFictitious)
+        matches!(
+            self,
+            GridClass::FineActive | GridClass::FineFictitious | GridClass::FineInactive
+        )
+    }
+
+    pub fn is_inactive(self) -> bool {
+        matches!(self, GridClass::CoarseInactive | GridClass::FineInactive)
+    }
+
+    pub fn is_fictitious(self) -> bool {
+        matches!(
+            self,
+            GridClass::CoarseFictitious | GridClass::FineFictitious
+        )
     }
 
     pub fn is_active(self) -> bool {
         matches!(self, GridClass::CoarseActive | GridClass::FineActive)
+    }
+
+    /// Drawing radii, half of each node's level spacing.
+    pub fn radii(class: &[GridClass], coarse_spacing: f64, fine_spacing: f64) -> Vec<f32> {
+        let (coarse, fine) = ((0.5 * coarse_spacing) as f32, (0.5 * fine_spacing) as f32);
+        class
+            .iter()
+            .map(|c| if c.is_fine() { fine } else { coarse })
+            .collect()
     }
 
     pub fn field(class: &[GridClass]) -> ClassField {

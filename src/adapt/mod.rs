@@ -1,11 +1,12 @@
 //! Adaptations that run between steps and change which scheme (or phase) each node has: the
 //! adaptive hybrid's switching (`hybrid`, filtered by `motion`), the fixed hybrid of corrosion
-//! scenes (`fixed`), the phase change (`phase`), the multi-grid coupling (`multigrid`), and the typed masks they
+//! scenes (`fixed`), the phase change (`phase`), the multi-grid coupling (`multigrid`) and its adaptive form for fracture (`multiadaptive`), and the typed masks they
 //! keep (`masks`).
 
 pub mod fixed;
 pub mod hybrid;
 pub mod masks;
 pub mod motion;
+pub mod multiadaptive;
 pub mod multigrid;
 pub mod phase;

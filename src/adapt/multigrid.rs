@@ -18,7 +18,7 @@ use rayon::prelude::*;
 
 use super::masks::GridClass;
 use crate::discretization::{Families, Lattice, Quadrature, family};
-use crate::scene::{MultigridSpec, Scene, SceneError};
+use crate::scene::{MultigridSpec, Refinement, Scene, SceneError};
 
 /// The two levels' nodes in one index space, and the fictitious nodes' interpolation.
 #[derive(Debug, Clone)]
@@ -39,7 +39,7 @@ pub struct MultiGrid<const D: usize> {
 }
 
 /// A k-d tree over points (finite lattice coordinates).
-fn tree<const D: usize>(points: &[[f64; D]]) -> Option<ImmutableKdTree<f64, D>> {
+pub(crate) fn tree<const D: usize>(points: &[[f64; D]]) -> Option<ImmutableKdTree<f64, D>> {
     (!points.is_empty()).then(|| ImmutableKdTree::new_from_slice(points).expect("finite points"))
 }
 
@@ -62,7 +62,7 @@ fn within<const D: usize>(points: &[[f64; D]], of: &[[f64; D]], reach: f64) -> V
 }
 
 /// The fine cell centres of a coarse cell centred at `x`.
-fn subcells<const D: usize>(x: &[f64; D], coarse: f64, ratio: usize) -> Vec<[f64; D]> {
+pub(crate) fn subcells<const D: usize>(x: &[f64; D], coarse: f64, ratio: usize) -> Vec<[f64; D]> {
     let fine = coarse / ratio as f64;
     let count = ratio.pow(D as u32);
     (0..count)
@@ -80,7 +80,7 @@ fn subcells<const D: usize>(x: &[f64; D], coarse: f64, ratio: usize) -> Vec<[f64
 
 /// Inverse-distance weights of the `n` nearest of `sources` (indices into the union via
 /// `offset`) to `x`: 1/d each, normalized; a source at distance 0 takes all the weight.
-fn idw<const D: usize>(
+pub(crate) fn idw<const D: usize>(
     t: &ImmutableKdTree<f64, D>,
     x: &[f64; D],
     n: usize,
@@ -103,8 +103,15 @@ fn idw<const D: usize>(
 }
 
 impl<const D: usize> MultiGrid<D> {
-    /// The two levels of `scene` with its fine region.
+    /// The two levels of `scene` with its predefined fine region.
     pub fn build(scene: &Scene, spec: &MultigridSpec) -> Result<Self, SceneError> {
+        let Refinement::Region(region) = &spec.refinement else {
+            return Err(scene.error(
+                "multigrid",
+                "a predefined fine region is built for diffusion and corrosion; dynamics \
+                 refines adaptively",
+            ));
+        };
         let coarse_lattice = Lattice::<D>::of_scene(scene)?;
         let (dx, delta) = (scene.spacing, scene.horizon);
         let r = spec.ratio;
@@ -112,7 +119,7 @@ impl<const D: usize> MultiGrid<D> {
         let inside: Vec<bool> = coarse_lattice
             .positions
             .iter()
-            .map(|x| spec.region.contains(x, eps))
+            .map(|x| region.contains(x, eps))
             .collect();
         let split = |want: bool| -> Vec<[f64; D]> {
             coarse_lattice

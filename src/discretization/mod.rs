@@ -11,6 +11,8 @@ pub use family::Families;
 pub use grid::Lattice;
 pub use nodes::{Field, NodeValue, Nodes};
 
+use rayon::prelude::*;
+
 use crate::scene::{Scene, SceneError};
 
 /// The horizon δ: one value for the whole body, or one per node (dual-horizon schemes).
@@ -143,21 +145,25 @@ impl<const D: usize> Discretization<D> {
         let families = &self.families;
         let mut intact = vec![1u8; families.bond_count()];
         for (c, crack) in scene.precracks.iter().enumerate() {
-            let mut cut = 0usize;
-            for (i, a) in positions.iter().enumerate() {
-                for b in families.range(i) {
-                    let other = &positions[families.neighbors[b] as usize];
-                    if family::crosses(crack, a, other) || family::crosses(crack, other, a) {
-                        intact[b] = 0;
-                        cut += 1;
-                    }
-                }
-            }
-            if cut == 0 {
+            // The bonds each node's row loses, rows in parallel; then cut.
+            let cut: Vec<usize> = (0..positions.len())
+                .into_par_iter()
+                .flat_map_iter(|i| {
+                    let a = &positions[i];
+                    families.range(i).filter(move |&b| {
+                        let other = &positions[families.neighbors[b] as usize];
+                        family::crosses(crack, a, other) || family::crosses(crack, other, a)
+                    })
+                })
+                .collect();
+            if cut.is_empty() {
                 return Err(scene.error(
                     &format!("precracks[{c}]"),
                     "cuts no bond: the pre-crack lies outside the body (or between nodes)",
                 ));
+            }
+            for b in cut {
+                intact[b] = 0;
             }
         }
         Ok(intact)

@@ -50,6 +50,11 @@ pub(super) fn log_frame(
         .chunks_exact(dim)
         .map(|p| std::array::from_fn(|k| p.get(k).map_or(0.0, |&v| v as f32)))
         .collect();
+    let radii: Vec<rerun::components::Radius> = if frame.radii.is_empty() {
+        vec![radius.into()]
+    } else {
+        frame.radii.iter().map(|&r| r.into()).collect()
+    };
     let palette = palette();
     for field in &frame.fields {
         let scale = 255.0 / (field.range.1 - field.range.0);
@@ -73,13 +78,13 @@ pub(super) fn log_frame(
             Box::new(
                 rerun::Points3D::new(positions.iter().copied())
                     .with_colors(colors)
-                    .with_radii([radius]),
+                    .with_radii(radii.iter().copied()),
             )
         } else {
             Box::new(
                 rerun::Points2D::new(positions.iter().map(|p| [p[0], p[1]]))
                     .with_colors(colors)
-                    .with_radii([radius]),
+                    .with_radii(radii.iter().copied()),
             )
         };
         stream.log(path, &[points.as_ref(), &values as &dyn AsComponents])?;
@@ -103,14 +108,14 @@ pub(super) fn log_frame(
                 path,
                 &rerun::Points3D::new(positions.iter().copied())
                     .with_class_ids(ids)
-                    .with_radii([radius]),
+                    .with_radii(radii.iter().copied()),
             )?;
         } else {
             stream.log(
                 path,
                 &rerun::Points2D::new(positions.iter().map(|p| [p[0], p[1]]))
                     .with_class_ids(ids)
-                    .with_radii([radius]),
+                    .with_radii(radii.iter().copied()),
             )?;
         }
     }

@@ -18,6 +18,10 @@ const PRESETS: &[(&str, &str)] = &[
         include_str!("../../presets/kalthoff-winkler.toml"),
     ),
     (
+        "kalthoff-winkler-multigrid",
+        include_str!("../../presets/kalthoff-winkler-multigrid.toml"),
+    ),
+    (
         "pmb-block-3d",
         include_str!("../../presets/pmb-block-3d.toml"),
     ),

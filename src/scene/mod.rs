@@ -59,6 +59,8 @@ pub struct Scene {
     pub time: TimeSpec,
     pub output_every: Option<u64>,
     pub crack_angles: Vec<CrackAngleSpec>,
+    pub energy_circles: Vec<EnergyCircleSpec>,
+    pub damage_counts: Vec<DamageCountSpec>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -110,11 +112,21 @@ pub struct HybridSpec {
     pub check_every: u64,
 }
 
-/// A predefined fine region refined `ratio` times (thesis §3.4).
+/// Two grid levels, the fine one `ratio` times finer (thesis §3.4–3.5).
 #[derive(Debug, Clone)]
 pub struct MultigridSpec {
     pub ratio: usize,
-    pub region: Solid,
+    pub refinement: Refinement,
+}
+
+/// Where the fine level is active.
+#[derive(Debug, Clone)]
+pub enum Refinement {
+    /// A predefined, fixed fine region (diffusion and corrosion, thesis §3.4).
+    Region(Solid),
+    /// The multi-adaptive switch (dynamic fracture, thesis §3.5): refined at the start within
+    /// `band` of boundaries and pre-cracks, then around every coarse bond reaching χ·s0.
+    Adaptive { band: f64, chi: f64 },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -216,6 +228,22 @@ pub struct CrackAngleSpec {
     pub direction: Vec<f64>,
     pub threshold: f64,
     pub region: Solid,
+}
+
+/// Kinetic plus strain energy within a circle (sphere) of the reference configuration.
+#[derive(Debug, Clone)]
+pub struct EnergyCircleSpec {
+    pub name: String,
+    pub center: Vec<f64>,
+    pub radius: f64,
+}
+
+/// Nodes of a region whose damage reaches a threshold.
+#[derive(Debug, Clone)]
+pub struct DamageCountSpec {
+    pub name: String,
+    pub region: Solid,
+    pub threshold: f64,
 }
 
 impl Scene {
@@ -391,11 +419,16 @@ fn override_error(file: &str, overrides: &toml::Table, e: toml::de::Error) -> Sc
     }
 }
 
-/// Deep merge: tables merge key by key, anything else is replaced.
+/// Overlays a variant (or `--set` overrides) on the base table: tables merge key by key,
+/// other values replace; `key = false` over a table removes it (a variant without the base's
+/// `[multigrid]`, say).
 fn merge_tables(base: &mut toml::Table, overrides: &toml::Table) {
     for (key, value) in overrides {
         match (base.get_mut(key), value) {
             (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge_tables(b, o),
+            (Some(toml::Value::Table(_)), toml::Value::Boolean(false)) => {
+                base.remove(key);
+            }
             _ => {
                 base.insert(key.clone(), value.clone());
             }

@@ -74,15 +74,25 @@ pub struct Discretization {
     pub collocation_factor: Option<usize>,
 }
 
-/// A predefined fine region (thesis §3.4): coarse cells whose node lies in `region` are split
-/// into `ratio`ᵈ fine cells; `discretization.spacing` is the coarse spacing Δx⁺.
+/// Two grid levels (thesis §3.4–3.5): coarse cells are split into `ratio`ᵈ fine cells where
+/// refined; `discretization.spacing` is the coarse spacing Δx⁺. Diffusion and corrosion refine
+/// a predefined `region`; dynamics refines a `band` around boundaries and pre-cracks at the
+/// start and then wherever a coarse bond reaches χ·s0 (the multi-adaptive switch).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MultigridTable {
     /// The grid ratio Δx⁺/Δx⁻, a whole number.
     pub ratio: usize,
-    /// The fine region Ω⁻.
-    pub region: Shape,
+    /// The fine region Ω⁻ (diffusion, corrosion).
+    #[serde(default)]
+    pub region: Option<Shape>,
+    /// Dynamics: the initial Ω⁻, coarse cells within this distance of a boundary or pre-crack
+    /// ("1 horizon", "4 mm"; default "1 horizon").
+    #[serde(default)]
+    pub band: Option<Measure>,
+    /// Dynamics: the switching margin χ of (3.80) on coarse bonds (default 0.95, the thesis's σ).
+    #[serde(default)]
+    pub chi: Option<f64>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -440,6 +450,31 @@ pub struct Output {
 pub struct MetricsSpec {
     #[serde(default)]
     pub crack_angle: Vec<CrackAngleSpec>,
+    #[serde(default)]
+    pub energy_circle: Vec<EnergyCircleSpec>,
+    #[serde(default)]
+    pub damage_count: Vec<DamageCountSpec>,
+}
+
+/// Kinetic plus strain energy of the (active) nodes within `radius` of `center`, logged as
+/// `energy/circle/<name>` (the thesis's Fig. 3.35 measure).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnergyCircleSpec {
+    pub name: String,
+    pub center: Point,
+    pub radius: Quantity,
+}
+
+/// The number of nodes in `region` whose damage reaches `threshold`, logged as
+/// `damage/count/<name>` (e.g. a secondary crack on the far edge).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DamageCountSpec {
+    pub name: String,
+    pub region: Shape,
+    #[serde(default = "default_threshold")]
+    pub threshold: f64,
 }
 
 /// Angle of a crack grown from a pre-crack tip: a least-squares line through the damaged nodes

@@ -171,7 +171,15 @@ pub(super) fn validate(
             ),
         ));
     }
-    let multigrid = multigrid(p, ctx, dim, physics, scheme.kind, perturbation)?;
+    let multigrid = multigrid(
+        p,
+        ctx,
+        dim,
+        physics,
+        scheme.kind,
+        perturbation,
+        [spacing, horizon],
+    )?;
     let reference = p
         .reference
         .as_ref()
@@ -260,6 +268,43 @@ pub(super) fn validate(
         })
         .collect::<Result<Vec<_>, _>>()
         .map_err(|m| ctx.from_path_message(&m))?;
+    let energy_circles = p
+        .metrics
+        .energy_circle
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let path = format!("metrics.energy_circle[{i}]");
+            let radius = c.radius.si();
+            if !(radius > 0.0 && radius.is_finite()) {
+                return Err(format!("{path}.radius: must be a length > 0, got {radius}"));
+            }
+            Ok(EnergyCircleSpec {
+                name: c.name.clone(),
+                center: point(&c.center, dim, &format!("{path}.center"))?,
+                radius,
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|m| ctx.from_path_message(&m))?;
+    let damage_counts = p
+        .metrics
+        .damage_count
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let path = format!("metrics.damage_count[{i}]");
+            if !(0.0..=1.0).contains(&c.threshold) {
+                return Err(format!("{path}.threshold: must be in [0, 1]"));
+            }
+            Ok(DamageCountSpec {
+                name: c.name.clone(),
+                region: c.region.to_solid(dim, &format!("{path}.region"))?,
+                threshold: c.threshold,
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|m| ctx.from_path_message(&m))?;
 
     Ok(Scene {
         name: p.name.clone(),
@@ -290,12 +335,14 @@ pub(super) fn validate(
         time,
         output_every: p.output.every,
         crack_angles,
+        energy_circles,
+        damage_counts,
     })
 }
 
-/// The fine region of a multi-grid scene: a whole grid ratio in 2..=16, on the standard scheme
-/// of a diffusion or corrosion scene (the multi-adaptive dynamics is not built yet), on an
-/// unperturbed lattice (the fine cells split the coarse ones).
+/// The two levels of a multi-grid scene: a whole grid ratio in 2..=16, the standard scheme on
+/// both levels, an unperturbed lattice (the fine cells split the coarse ones). Diffusion and
+/// corrosion take a predefined `region`; dynamics the multi-adaptive switch from a `band`.
 fn multigrid(
     p: &Preset,
     ctx: &ErrorContext,
@@ -303,6 +350,7 @@ fn multigrid(
     physics: Physics,
     kind: SchemeKind,
     perturbation: [f64; 2],
+    [spacing, horizon]: [f64; 2],
 ) -> Result<Option<MultigridSpec>, SceneError> {
     let Some(m) = &p.multigrid else {
         return Ok(None);
@@ -314,12 +362,6 @@ fn multigrid(
                 "the grid ratio Δx⁺/Δx⁻ must be a whole number in 2..=16, got {}",
                 m.ratio
             ),
-        ));
-    }
-    if !matches!(physics, Physics::Diffusion | Physics::Corrosion) {
-        return Err(ctx.error(
-            "multigrid",
-            "a predefined fine region is available for physics = \"diffusion\" and \"corrosion\"",
         ));
     }
     if kind != SchemeKind::Standard {
@@ -337,14 +379,86 @@ fn multigrid(
             "a multi-grid scene needs an unperturbed lattice (fine cells split the coarse ones)",
         ));
     }
-    let region = m
-        .region
-        .to_solid(dim, "multigrid.region")
-        .map_err(|e| ctx.from_path_message(&e))?;
+    let refinement = match physics {
+        Physics::Diffusion | Physics::Corrosion => {
+            for (given, field) in [(m.band.is_some(), "band"), (m.chi.is_some(), "chi")] {
+                if given {
+                    return Err(ctx.error(
+                        &format!("multigrid.{field}"),
+                        "belongs to the multi-adaptive switch of dynamics; diffusion and \
+                         corrosion refine the predefined `region`",
+                    ));
+                }
+            }
+            let Some(region) = &m.region else {
+                return Err(ctx.error(
+                    "multigrid.region",
+                    "is missing: diffusion and corrosion refine a predefined region",
+                ));
+            };
+            let region = region
+                .to_solid(dim, "multigrid.region")
+                .map_err(|e| ctx.from_path_message(&e))?;
+            Refinement::Region(region)
+        }
+        Physics::Dynamics => {
+            if m.region.is_some() {
+                return Err(ctx.error(
+                    "multigrid.region",
+                    "dynamics refines adaptively: give the initial `band` around boundaries \
+                     and pre-cracks instead",
+                ));
+            }
+            let band = match m.band {
+                None => horizon,
+                Some(b) => length(ctx, "multigrid.band", b, spacing, horizon)?,
+            };
+            if band.is_nan() || band < horizon * (1.0 - 1e-9) || !band.is_finite() {
+                return Err(ctx.error(
+                    "multigrid.band",
+                    format!(
+                        "{band:.4e} m is narrower than the horizon {horizon:.4e} m: nodes whose \
+                         neighbourhood a boundary or pre-crack cuts must start on the fine level"
+                    ),
+                ));
+            }
+            let chi = check_chi(m.chi.unwrap_or(DEFAULT_CHI))
+                .map_err(|e| ctx.error("multigrid.chi", e))?;
+            Refinement::Adaptive { band, chi }
+        }
+        Physics::Static => {
+            return Err(ctx.error(
+                "multigrid",
+                "two grid levels are available for dynamics, diffusion and corrosion",
+            ));
+        }
+    };
     Ok(Some(MultigridSpec {
         ratio: m.ratio,
-        region,
+        refinement,
     }))
+}
+
+/// A length given in SI units or relative to the horizon or spacing.
+fn length(
+    ctx: &ErrorContext,
+    field: &str,
+    m: Measure,
+    spacing: f64,
+    horizon: f64,
+) -> Result<f64, SceneError> {
+    match m {
+        Measure::Si(b) => Ok(b),
+        Measure::Relative(f, Relative::Horizon) => Ok(f * horizon),
+        Measure::Relative(f, Relative::Spacing) => Ok(f * spacing),
+        Measure::Relative(_, r) => Err(ctx.error(
+            field,
+            format!(
+                "`{}` is not a length: give \"1.2 horizon\", \"5 dx\" or \"3 mm\"",
+                r.unit()
+            ),
+        )),
+    }
 }
 
 fn positive(ctx: &ErrorContext, field: &str, v: f64) -> Result<f64, SceneError> {
@@ -509,20 +623,7 @@ fn hybrid(
         return Ok(None);
     }
     let h = &p.hybrid;
-    let band = match h.band {
-        Measure::Si(b) => b,
-        Measure::Relative(f, Relative::Horizon) => f * horizon,
-        Measure::Relative(f, Relative::Spacing) => f * spacing,
-        Measure::Relative(_, r) => {
-            return Err(ctx.error(
-                "hybrid.band",
-                format!(
-                    "`{}` is not a length: give \"1.2 horizon\", \"5 dx\" or \"3 mm\"",
-                    r.unit()
-                ),
-            ));
-        }
-    };
+    let band = length(ctx, "hybrid.band", h.band, spacing, horizon)?;
     if band.is_nan() || band < horizon * (1.0 - 1e-9) || !band.is_finite() {
         return Err(ctx.error(
             "hybrid.band",

@@ -7,7 +7,8 @@
 use rayon::prelude::*;
 
 use crate::adapt::hybrid::{self, Hybrid};
-use crate::adapt::masks::SchemeClass;
+use crate::adapt::masks::{GridClass, SchemeClass};
+use crate::adapt::multiadaptive::MultiAdaptive;
 use crate::discretization::{Discretization, Families, Field, Nodes, Quadrature};
 use crate::frame::{ClassField, Frame, NodeField};
 use crate::integrate::{self, stability, verlet};
@@ -66,6 +67,10 @@ pub struct DynamicSimulation<const D: usize> {
     pub hybrid: Option<Hybrid<D>>,
     /// Bonds found broken with an Ω_w end (the hybrid invariant; 0 when it holds).
     pub hybrid_violations: u64,
+    /// Multi-adaptive scenes (thesis §3.5): the two levels' roles and the switch.
+    pub multigrid: Option<MultiAdaptive<D>>,
+    /// Coarse bonds broken (the multi-adaptive invariant: damage stays on the fine level).
+    pub coarse_broken: u64,
 }
 
 /// The standard scheme over one discretization's reference configuration.
@@ -80,6 +85,77 @@ fn standard<'a, const D: usize>(
         families: &discretization.families,
         law,
         quadrature: &discretization.quadrature,
+    }
+}
+
+/// The standard scheme over one level of a multi-grid discretization: its quadrature (β of its
+/// spacing) and its cell volume (a level's families hold only its own nodes).
+fn level_scheme<'a, const D: usize>(
+    discretization: &'a Discretization<D>,
+    law: &'a PmbLaw,
+    quadrature: &'a Quadrature,
+) -> Standard<'a, D> {
+    Standard {
+        uniform_volume: Some(quadrature.spacing.powi(D as i32)),
+        quadrature,
+        ..standard(discretization, law)
+    }
+}
+
+/// Per node, the damage denominator and pre-cracked numerator of its own level.
+fn level_damage_weights<const D: usize>(
+    discretization: &Discretization<D>,
+    law: &PmbLaw,
+    grid: &MultiAdaptive<D>,
+    intact: &[u8],
+) -> (Vec<f64>, Vec<f64>) {
+    let coarse = level_scheme(discretization, law, &grid.coarse).damage_weights(intact);
+    let fine = level_scheme(discretization, law, &grid.fine).damage_weights(intact);
+    let pick = |c: &[f64], f: &[f64]| -> Vec<f64> {
+        (0..c.len())
+            .map(|i| if i < grid.coarse_count { c[i] } else { f[i] })
+            .collect()
+    };
+    (pick(&coarse.0, &fine.0), pick(&coarse.1, &fine.1))
+}
+
+/// The stable step of a multi-adaptive scene: (3.8) over every node of both levels (any may
+/// become active), and the power-iterated sharp limit of the operator on the initially active
+/// rows of both levels (each with its own quadrature).
+fn level_stable_step<const D: usize>(
+    discretization: &Discretization<D>,
+    law: &PmbLaw,
+    grid: &MultiAdaptive<D>,
+    intact: &[u8],
+    density: f64,
+) -> StableStep {
+    let (coarse, fine) = (
+        level_scheme(discretization, law, &grid.coarse),
+        level_scheme(discretization, law, &grid.fine),
+    );
+    let split = discretization.families.offsets[grid.coarse_count];
+    let guaranteed =
+        integrate::stable_step(density, &coarse.stiffness_sums()[..grid.coarse_count]).min(
+            integrate::stable_step(density, &fine.stiffness_sums()[grid.coarse_count..]),
+        );
+    let mut coefficients = coarse.linearized_coefficients(density);
+    coefficients[split..].copy_from_slice(&fine.linearized_coefficients(density)[split..]);
+    let masses: Vec<f64> = grid
+        .active_volumes(discretization.nodes.volumes())
+        .iter()
+        .map(|v| v * density)
+        .collect();
+    let n = discretization.len();
+    let rows = &grid.rows;
+    let lambda_max = stability::max_eigenvalue::<D>(n, &masses, POWER_ITERATIONS, |u, out| {
+        out.fill([0.0; D]);
+        coarse.apply_linearized_masked(&coefficients, intact, u, out, |i| rows.coarse[i] != 0);
+        fine.apply_linearized_masked(&coefficients, intact, u, out, |i| rows.fine[i] != 0);
+    });
+    StableStep {
+        sharp: stability::verlet_step(lambda_max).max(guaranteed),
+        guaranteed,
+        integrator: Integrator::Verlet,
     }
 }
 
@@ -125,7 +201,19 @@ fn stable_step<const D: usize>(
 
 impl<const D: usize> DynamicSimulation<D> {
     pub fn new(scene: &Scene) -> Result<Self, SceneError> {
-        let mut discretization = Discretization::<D>::of_scene(scene)?;
+        let (mut discretization, multigrid) = match &scene.multigrid {
+            None => (Discretization::<D>::of_scene(scene)?, None),
+            Some(spec) => {
+                let (grid, levels) = MultiAdaptive::<D>::build(scene, spec)?;
+                let d = Discretization::of_nodes(
+                    scene,
+                    levels.positions,
+                    levels.volumes,
+                    levels.families,
+                )?;
+                (d, Some(grid))
+            }
+        };
         let intact = discretization.intact_bonds(scene)?;
         let Some(m) = scene.material.as_ref() else {
             return Err(scene.error(
@@ -159,8 +247,16 @@ impl<const D: usize> DynamicSimulation<D> {
             }
         };
         let scheme = standard(&discretization, &law);
-        let stable = stable_step(&scheme, &intact, density, hybrid.as_ref());
-        let (family_weight, precracked) = scheme.damage_weights(&intact);
+        let (stable, (family_weight, precracked)) = match &multigrid {
+            Some(g) => (
+                level_stable_step(&discretization, &law, g, &intact, density),
+                level_damage_weights(&discretization, &law, g, &intact),
+            ),
+            None => (
+                stable_step(&scheme, &intact, density, hybrid.as_ref()),
+                scheme.damage_weights(&intact),
+            ),
+        };
         let run = RunState::new(scene, stable, STAGES)?;
 
         let nodes = &mut discretization.nodes;
@@ -202,6 +298,8 @@ impl<const D: usize> DynamicSimulation<D> {
             velocity_scale: 1.0,
             hybrid,
             hybrid_violations: 0,
+            multigrid,
+            coarse_broken: 0,
         };
         sim.apply_initial_velocity();
         sim.apply_constraints();
@@ -368,6 +466,30 @@ impl<const D: usize> DynamicSimulation<D> {
         let (positions, terms) = nodes
             .fields
             .pair_mut(self.columns.position, self.columns.terms);
+        if let Some(g) = &self.multigrid {
+            // Each level's active rows with its own quadrature; every neighbour of an active
+            // node is active or fictitious (interpolated before this pass).
+            for (quadrature, rows, coarse) in [
+                (&g.coarse, &g.rows.coarse, true),
+                (&g.fine, &g.rows.fine, false),
+            ] {
+                let scheme = Standard {
+                    reference: nodes.base.reference(),
+                    volumes: nodes.base.volumes(),
+                    uniform_volume: Some(quadrature.spacing.powi(D as i32)),
+                    families,
+                    law: &self.law,
+                    quadrature,
+                };
+                let broken =
+                    scheme.forces_masked(positions, &mut self.intact, terms, Some(rows.as_slice()));
+                self.broken += broken;
+                if coarse {
+                    self.coarse_broken += broken;
+                }
+            }
+            return;
+        }
         let mask = self.hybrid.as_ref().map(|h| h.mask());
         self.broken += scheme.forces_masked(positions, &mut self.intact, terms, mask);
         if let Some(h) = self.hybrid.as_mut() {
@@ -395,12 +517,18 @@ impl<const D: usize> DynamicSimulation<D> {
                 }
             };
         let (terms, hybrid) = (&*terms, self.hybrid.as_ref());
+        let class = self.multigrid.as_ref().map(|g| g.class.as_slice());
         accelerations
             .par_iter_mut()
             .zip(velocities)
             .enumerate()
             .with_min_len(4096)
             .map(|(i, (a, v))| {
+                // Nodes not active on their level are not integrated (interpolated or idle).
+                if class.is_some_and(|c| !c[i].is_active()) {
+                    *a = [0.0; D];
+                    return 0.0;
+                }
                 let force = match hybrid.and_then(|h| h.wls_force_of(i)) {
                     Some(force) => force,
                     None => terms[i].force,
@@ -457,8 +585,9 @@ impl<const D: usize> DynamicSimulation<D> {
             .energy_density(i, self.positions(), &self.intact)
     }
 
+    /// Over the nodes that carry mass (the active ones of a multi-grid scene).
     pub fn kinetic_energy_and_momentum(&self) -> (f64, [f64; D]) {
-        metrics::kinetic_energy_and_momentum(self.velocities(), self.volumes(), self.density)
+        metrics::kinetic_energy_and_momentum(self.velocities(), &self.mass_volumes(), self.density)
     }
 
     /// Force density on each node at the current positions (N/m³), without body forces.
@@ -471,8 +600,16 @@ impl<const D: usize> DynamicSimulation<D> {
             .collect()
     }
 
-    /// Recomputes forces after positions were set by hand (tests, restarts).
+    /// Recomputes forces after positions were set by hand (tests, restarts); on a multi-grid
+    /// scene the interpolated nodes first follow the other level.
     pub fn refresh_forces(&mut self) {
+        if let Some(g) = &self.multigrid {
+            let c = self.columns;
+            let nodes = &mut self.discretization.nodes;
+            let reference = nodes.base.reference();
+            let (positions, velocities) = nodes.fields.pair_mut(c.position, c.velocity);
+            g.transfer(reference, positions, velocities);
+        }
         self.update_accelerations();
     }
 
@@ -510,6 +647,97 @@ impl<const D: usize> DynamicSimulation<D> {
         (vec![SchemeClass::field(h.mask(), false)], events)
     }
 
+    /// The multi-adaptive step between drift and forces (seed-thesis-ch2-3 §7 steps 3 and 6):
+    /// the interpolated nodes take u^{n+1} and u̇^{n+½} from the other level, then every bond
+    /// of an active coarse node is checked and the critical ones refine their neighbourhoods,
+    /// before the force pass evaluates damage on u^{n+1}.
+    fn switch_levels(&mut self) {
+        let Some(g) = self.multigrid.as_mut() else {
+            return;
+        };
+        let (step, time) = (self.run.clock.step() + 1, self.run.clock.next_time());
+        let c = self.columns;
+        let Discretization {
+            nodes, families, ..
+        } = &mut self.discretization;
+        let reference = nodes.base.reference();
+        let (positions, velocities) = nodes.fields.pair_mut(c.position, c.velocity);
+        g.transfer(reference, positions, velocities);
+        let critical = g.critical_bonds(positions, families, self.law.critical_stretch);
+        if !critical.is_empty() {
+            g.refine(
+                step, time, &critical, families, reference, positions, velocities,
+            );
+            g.transfer(reference, positions, velocities);
+        }
+    }
+
+    /// Each node's volume where it carries mass: every node, or the active ones of a
+    /// multi-grid scene.
+    fn mass_volumes(&self) -> std::borrow::Cow<'_, [f64]> {
+        match &self.multigrid {
+            Some(g) => std::borrow::Cow::Owned(g.active_volumes(self.volumes())),
+            None => std::borrow::Cow::Borrowed(self.volumes()),
+        }
+    }
+
+    /// The spacing of the finest level (the crack-path metric links nearest neighbours).
+    fn finest_spacing(&self) -> f64 {
+        self.multigrid
+            .as_ref()
+            .map_or(self.scene.spacing, |g| g.fine.spacing)
+    }
+
+    /// Metrics of the scene's energy circles and damage counts, from per-node kinetic plus
+    /// strain energy and damage (zero on nodes that carry no mass).
+    fn region_metrics(
+        &self,
+        node_energy: &[f64],
+        damage: &[f64],
+        scalars: &mut Vec<(String, f64)>,
+    ) {
+        let reference = self.reference();
+        for c in &self.scene.energy_circles {
+            let r2 = c.radius * c.radius;
+            let energy: f64 = (0..reference.len())
+                .into_par_iter()
+                .filter(|&i| {
+                    (0..D)
+                        .map(|k| (reference[i][k] - c.center[k]).powi(2))
+                        .sum::<f64>()
+                        <= r2
+                })
+                .map(|i| node_energy[i])
+                .sum();
+            scalars.push((format!("energy/circle/{}", c.name), energy));
+        }
+        let eps = 1e-9 * self.scene.spacing;
+        for d in &self.scene.damage_counts {
+            let count = (0..reference.len())
+                .filter(|&i| damage[i] >= d.threshold && d.region.contains(&reference[i], eps))
+                .count();
+            scalars.push((format!("damage/count/{}", d.name), count as f64));
+        }
+    }
+
+    /// The grid classes, counts, switch events and invariant of a multi-adaptive frame.
+    fn multigrid_frame(
+        &mut self,
+        scalars: &mut Vec<(String, f64)>,
+        events: &mut Vec<String>,
+    ) -> Option<ClassField> {
+        let g = self.multigrid.as_mut()?;
+        let (coarse, fine, fictitious) = g.counts();
+        scalars.push(("grid/coarse_active".into(), coarse as f64));
+        scalars.push(("grid/fine_active".into(), fine as f64));
+        scalars.push(("grid/fictitious".into(), fictitious as f64));
+        scalars.push(("grid/refined_by_switch".into(), g.refined_by_switch as f64));
+        scalars.push(("grid/chi".into(), g.chi));
+        scalars.push(("grid/coarse_broken".into(), self.coarse_broken as f64));
+        events.extend(g.take_events().iter().map(|e| e.to_string()));
+        Some(GridClass::field(&g.class))
+    }
+
     fn crack_angles_for(&self, damage: &[f64]) -> Vec<(String, Option<f64>)> {
         self.scene
             .crack_angles
@@ -520,7 +748,7 @@ impl<const D: usize> DynamicSimulation<D> {
                     self.reference(),
                     damage,
                     self.families(),
-                    self.scene.spacing,
+                    self.finest_spacing(),
                     self.scene.horizon,
                 );
                 (spec.name.clone(), angle)
@@ -578,6 +806,7 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         lap.charge(&mut self.run.stages, KICK_DRIFT);
         // Switch before the force pass evaluates damage on u^{n+1}
         // (seed-thesis-ch2-3 §5 steps 4–5).
+        self.switch_levels();
         if let Some(h) = self.hybrid.as_mut() {
             let d = &self.discretization;
             h.check(
@@ -611,29 +840,39 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
     }
 
     fn frame(&mut self) -> Frame {
-        let damage = self.damage();
+        let mut damage = self.damage();
+        let mass_volumes = self.mass_volumes().into_owned();
+        if self.multigrid.is_some() {
+            // Only active nodes carry the solution (fictitious ones mirror the other level).
+            for (d, &v) in damage.iter_mut().zip(&mass_volumes) {
+                if v == 0.0 {
+                    *d = 0.0;
+                }
+            }
+        }
         let speed: Vec<f64> = self
             .velocities()
             .iter()
             .map(|v| v.iter().map(|x| x * x).sum::<f64>().sqrt())
             .collect();
-        let (kinetic, momentum) = self.kinetic_energy_and_momentum();
+        let (kinetic, momentum) =
+            metrics::kinetic_energy_and_momentum(self.velocities(), &mass_volumes, self.density);
         // W_i from the last force evaluation, at the current positions. An Ω_w node's WLS
         // force has no local energy density (−½ u_i·f_i sums to the energy only over a whole
         // WLS body): its PMB bond energy over its family is evaluated here, at frame time.
         let mask = self.hybrid.as_ref().map(|h| h.mask());
-        let (terms, volumes) = (self.terms(), self.volumes());
-        let node_energy: Vec<f64> = (0..volumes.len())
+        let terms = self.terms();
+        let strain_energy: Vec<f64> = (0..mass_volumes.len())
             .into_par_iter()
             .map(|i| {
                 let w = match mask {
                     Some(m) if m[i] == SchemeClass::Wls => self.energy_density(i),
                     _ => terms[i].energy_density,
                 };
-                w * volumes[i]
+                w * mass_volumes[i]
             })
             .collect();
-        let strain: f64 = node_energy.iter().sum();
+        let strain: f64 = strain_energy.iter().sum();
         let mut scalars = vec![
             ("energy/kinetic".to_string(), kinetic),
             ("energy/strain".to_string(), strain),
@@ -644,13 +883,23 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         for (k, p) in momentum.iter().enumerate() {
             scalars.push((format!("momentum/{}", ["x", "y", "z"][k]), *p));
         }
-        let (classes, events) = self.hybrid_frame(&mut scalars);
+        if !(self.scene.energy_circles.is_empty() && self.scene.damage_counts.is_empty()) {
+            let node_energy: Vec<f64> = strain_energy
+                .iter()
+                .zip(&speed)
+                .zip(&mass_volumes)
+                .map(|((w, s), v)| w + 0.5 * self.density * v * s * s)
+                .collect();
+            self.region_metrics(&node_energy, &damage, &mut scalars);
+        }
+        let (mut classes, mut events) = self.hybrid_frame(&mut scalars);
+        classes.extend(self.multigrid_frame(&mut scalars, &mut events));
         for (name, angle) in self.crack_angles_for(&damage) {
             if let Some(a) = angle {
                 scalars.push((format!("crack_angle_deg/{name}"), a));
             }
         }
-        Frame {
+        let mut frame = Frame {
             step: self.run.clock.step(),
             time: self.run.clock.time(),
             dim: D,
@@ -670,7 +919,15 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
             classes,
             events,
             scalars,
+            radii: Vec::new(),
+        };
+        if let Some(g) = &self.multigrid {
+            frame.radii = GridClass::radii(&g.class, g.coarse.spacing, g.fine.spacing);
+            // Inactive nodes are not drawn: the point cloud follows the active levels.
+            let keep: Vec<bool> = g.class.iter().map(|c| !c.is_inactive()).collect();
+            frame.retain_nodes(&keep);
         }
+        frame
     }
 
     fn info(&self) -> SimInfo {
@@ -709,6 +966,10 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         if let Some(h) = &self.hybrid {
             h.save(&mut state);
         }
+        if let Some(g) = &self.multigrid {
+            state.put_u8("multigrid/refined", g.refined_cells());
+            state.put_u64("multigrid/coarse_broken", vec![self.coarse_broken]);
+        }
         state
     }
 
@@ -726,6 +987,20 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
             h.restore(state, &self.discretization.families)?;
         } else if state.has("hybrid/mask") {
             return Err("the checkpoint is of a hybrid scene; this scene has none".into());
+        }
+        match self.multigrid.as_mut() {
+            Some(g) => {
+                let refined = state.u8("multigrid/refined", g.coarse_count)?;
+                let coarse_broken = state.u64("multigrid/coarse_broken", 1)?[0];
+                g.restore_refined(refined, &self.discretization.families)?;
+                self.coarse_broken = coarse_broken;
+            }
+            None if state.has("multigrid/refined") => {
+                return Err(
+                    "the checkpoint is of a multi-grid scene; this scene has one grid".into(),
+                );
+            }
+            None => {}
         }
         let c = self.columns;
         let fields = &mut self.discretization.nodes.fields;
@@ -748,6 +1023,10 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
     }
 
     fn tune(&mut self, param: Param) -> Result<(), String> {
+        if let (Param::Chi(chi), Some(g)) = (param, self.multigrid.as_mut()) {
+            g.chi = crate::scene::check_chi(chi)?;
+            return Ok(());
+        }
         match (param, self.hybrid.as_mut()) {
             (Param::Chi(chi), Some(h)) => h.set_chi(chi),
             (param, None) => Err(param.unused_note().into()),

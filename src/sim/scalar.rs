@@ -673,6 +673,9 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             });
         }
         let classes = self.corrosion_frame(&mut scalars);
+        let radii = self.multigrid.as_ref().map_or(Vec::new(), |g| {
+            GridClass::radii(&g.class, g.coarse.spacing, g.fine.spacing)
+        });
         Frame {
             step: self.run.clock.step(),
             time: t,
@@ -682,6 +685,7 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             classes,
             events: std::mem::take(&mut self.events),
             scalars,
+            radii,
         }
     }
 

@@ -15,6 +15,7 @@ mod dynamics;
 mod export;
 mod hybrid;
 mod kalthoff_winkler;
+mod multiadaptive;
 mod multigrid;
 mod operators;
 mod panel;

