@@ -155,7 +155,10 @@ fn compare(multi_variant: &str, fine_variant: &str, coarse_variant: &str, strict
     );
     // The target is 5 % of the peak (the scaled test asserts it); the adaptive run
     // must at least be closer to the uniform fine run than the uniform coarse run is.
-    assert!(worst_multi < worst_coarse, "{worst_multi} vs {worst_coarse}");
+    assert!(
+        worst_multi < worst_coarse,
+        "{worst_multi} vs {worst_coarse}"
+    );
     if strict {
         assert!(worst_multi <= 0.05, "{worst_multi}");
     }
