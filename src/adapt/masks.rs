@@ -163,6 +163,26 @@ impl GridClass {
         matches!(self, GridClass::CoarseActive | GridClass::FineActive)
     }
 
+    /// Each node's volume where it is active, 0 elsewhere: Σ C V (or Σ ρ V) over these is the
+    /// body's total.
+    pub fn active_volumes(class: &[GridClass], volumes: &[f64]) -> Vec<f64> {
+        volumes
+            .iter()
+            .zip(class)
+            .map(|(&v, c)| if c.is_active() { v } else { 0.0 })
+            .collect()
+    }
+
+    /// Node counts: (coarse active, fine active, fictitious of both levels).
+    pub fn counts(class: &[GridClass]) -> (usize, usize, usize) {
+        let count = |c: GridClass| class.iter().filter(|&&k| k == c).count();
+        (
+            count(GridClass::CoarseActive),
+            count(GridClass::FineActive),
+            count(GridClass::CoarseFictitious) + count(GridClass::FineFictitious),
+        )
+    }
+
     /// Drawing radii, half of each node's level spacing.
     pub fn radii(class: &[GridClass], coarse_spacing: f64, fine_spacing: f64) -> Vec<f32> {
         let (coarse, fine) = ((0.5 * coarse_spacing) as f32, (0.5 * fine_spacing) as f32);

@@ -23,13 +23,14 @@
 //! - the fine level only grows: fine nodes are never deactivated (the thesis's Table 3.8 shows
 //!   Ω⁻ growing and Ω⁺ shrinking only).
 
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 use super::hybrid;
 use super::masks::{GridClass, SchemeClass};
 use super::multigrid::{idw, subcells, tree};
 use crate::discretization::{Families, Lattice, Quadrature, family};
-use crate::scene::{MultigridSpec, Refinement, Scene, SceneError};
+use crate::scene::{MultigridSpec, Refinement, Scene, SceneError, Transfer};
 
 /// Row masks of the two force passes: 0 where the pass evaluates the row (`RowMask` for u8).
 #[derive(Debug, Clone, Default)]
@@ -90,10 +91,85 @@ pub struct Levels<const D: usize> {
     pub families: Families,
 }
 
+/// Tensor-product linear weights at `x` from the coarse lattice (spacing `dx`): per axis, the
+/// coarse node of x's cell and its neighbour on x's side (the far-side one, extrapolating, at
+/// the body's edge); a node with no neighbour either way in an axis takes that axis constant,
+/// and one whose corner node is missing falls back to IDW.
+fn multilinear<const D: usize>(
+    t: &ImmutableKdTree<f64, D>,
+    coarse: &[[f64; D]],
+    x: &[f64; D],
+    dx: f64,
+) -> Vec<(u32, f64)> {
+    let own = t
+        .query(x)
+        .nearest_one::<SquaredEuclidean<f64>>()
+        .execute()
+        .item as usize;
+    let base = coarse[own];
+    let exists = |p: &[f64; D]| {
+        t.query(p)
+            .nearest_one::<SquaredEuclidean<f64>>()
+            .execute()
+            .distance
+            < (1e-6 * dx).powi(2)
+    };
+    // Per axis: (step to the partner node in units of dx, weight of the partner).
+    let axes: [(f64, f64); D] = std::array::from_fn(|k| {
+        let offset = (x[k] - base[k]) / dx;
+        let side = if offset >= 0.0 { 1.0 } else { -1.0 };
+        let mut towards = base;
+        towards[k] += side * dx;
+        let mut away = base;
+        away[k] -= side * dx;
+        if exists(&towards) {
+            (side, offset.abs())
+        } else if exists(&away) {
+            (-side, -offset.abs())
+        } else {
+            (0.0, 0.0)
+        }
+    });
+    let mut out = Vec::with_capacity(1 << D);
+    for corner in 0..(1usize << D) {
+        let mut p = base;
+        let mut w = 1.0;
+        for (k, &(step, partner)) in axes.iter().enumerate() {
+            if corner >> k & 1 == 1 {
+                if step == 0.0 {
+                    w = 0.0;
+                }
+                p[k] += step * dx;
+                w *= partner;
+            } else {
+                w *= 1.0 - partner;
+            }
+        }
+        if w != 0.0 {
+            if !exists(&p) {
+                // A missing corner (a body that is not a box there): the thesis's IDW.
+                return idw(t, x, 1 << D, 0);
+            }
+            let j = t
+                .query(&p)
+                .nearest_one::<SquaredEuclidean<f64>>()
+                .execute()
+                .item;
+            out.push((j, w));
+        }
+    }
+    out
+}
+
 impl<const D: usize> MultiAdaptive<D> {
     /// Both levels of `scene` over the whole body, refined within the spec's band.
     pub fn build(scene: &Scene, spec: &MultigridSpec) -> Result<(Self, Levels<D>), SceneError> {
-        let Refinement::Adaptive { band, chi } = spec.refinement else {
+        let Refinement::Adaptive {
+            band,
+            chi,
+            transfer,
+        } = spec.refinement
+        else {
             return Err(scene.error(
                 "multigrid",
                 "the multi-adaptive scheme refines from a band; a predefined region belongs to \
@@ -125,7 +201,10 @@ impl<const D: usize> MultiAdaptive<D> {
         let pairs: Vec<Vec<(u32, f64)>> = coarse
             .par_iter()
             .map(|x| idw(&fine_tree, x, n, coarse_count as u32))
-            .chain(fine.par_iter().map(|x| idw(&coarse_tree, x, n, 0)))
+            .chain(fine.par_iter().map(|x| match transfer {
+                Transfer::Idw => idw(&coarse_tree, x, n, 0),
+                Transfer::Multilinear => multilinear(&coarse_tree, &coarse, x, dx),
+            }))
             .collect();
         let mut offsets = Vec::with_capacity(pairs.len() + 1);
         offsets.push(0);
@@ -436,21 +515,12 @@ impl<const D: usize> MultiAdaptive<D> {
 
     /// Node counts: (coarse active, fine active, fictitious of both levels).
     pub fn counts(&self) -> (usize, usize, usize) {
-        let count = |c: GridClass| self.class.par_iter().filter(|&&k| k == c).count();
-        (
-            count(GridClass::CoarseActive),
-            count(GridClass::FineActive),
-            count(GridClass::CoarseFictitious) + count(GridClass::FineFictitious),
-        )
+        GridClass::counts(&self.class)
     }
 
     /// Each node's volume where it is active, 0 elsewhere: Σ ρ V over these is the body's mass.
     pub fn active_volumes(&self, volumes: &[f64]) -> Vec<f64> {
-        volumes
-            .iter()
-            .zip(&self.class)
-            .map(|(&v, c)| if c.is_active() { v } else { 0.0 })
-            .collect()
+        GridClass::active_volumes(&self.class, volumes)
     }
 
     /// The refined cells, one byte per coarse node (checkpoints).
@@ -477,5 +547,42 @@ impl<const D: usize> MultiAdaptive<D> {
         let mut copy = self.clone();
         copy.classify(families);
         copy.class
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lattice(n: usize) -> Vec<[f64; 2]> {
+        (0..n * n)
+            .map(|k| [(k % n) as f64, (k / n) as f64])
+            .collect()
+    }
+
+    /// Multilinear weights reproduce linear fields exactly, inside and (extrapolating) at the
+    /// lattice's edge; IDW does not (the reason the option exists).
+    #[test]
+    fn multilinear_weights_are_linear_exact() {
+        let coarse = lattice(5);
+        let t = tree(&coarse).unwrap();
+        let f = |p: &[f64; 2]| 0.3 + 2.0 * p[0] - 1.5 * p[1];
+        let value =
+            |w: &[(u32, f64)]| -> f64 { w.iter().map(|&(j, w)| w * f(&coarse[j as usize])).sum() };
+        for x in [[1.25, 2.75], [0.25, 0.25], [-0.25, 3.25], [4.25, -0.25]] {
+            let w = multilinear(&t, &coarse, &x, 1.0);
+            assert!((w.iter().map(|p| p.1).sum::<f64>() - 1.0).abs() < 1e-14);
+            assert!(
+                (value(&w) - f(&x)).abs() < 1e-13,
+                "{x:?}: {}",
+                value(&w) - f(&x)
+            );
+        }
+        let inside = multilinear(&t, &coarse, &[1.25, 1.25], 1.0);
+        let mut weights: Vec<f64> = inside.iter().map(|p| p.1).collect();
+        weights.sort_by(f64::total_cmp);
+        assert_eq!(weights, [1.0 / 16.0, 3.0 / 16.0, 3.0 / 16.0, 9.0 / 16.0]);
+        let by_idw = idw(&t, &[1.25, 1.25], 4, 0);
+        assert!((value(&by_idw) - f(&[1.25, 1.25])).abs() > 1e-3);
     }
 }

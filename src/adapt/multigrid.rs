@@ -244,12 +244,7 @@ impl<const D: usize> MultiGrid<D> {
 
     /// Node counts: (coarse active, fine active, fictitious of both levels).
     pub fn counts(&self) -> (usize, usize, usize) {
-        let count = |c: GridClass| self.class.iter().filter(|&&k| k == c).count();
-        (
-            count(GridClass::CoarseActive),
-            count(GridClass::FineActive),
-            count(GridClass::CoarseFictitious) + count(GridClass::FineFictitious),
-        )
+        GridClass::counts(&self.class)
     }
 
     /// The active nodes of one level (fine or coarse), in increasing order.
@@ -267,11 +262,7 @@ impl<const D: usize> MultiGrid<D> {
     /// Each node's volume (`volumes`, the union's) where it is active, 0 where fictitious:
     /// Σ C V over these is the body's total.
     pub fn active_volumes(&self, volumes: &[f64]) -> Vec<f64> {
-        volumes
-            .iter()
-            .zip(&self.class)
-            .map(|(&v, c)| if c.is_active() { v } else { 0.0 })
-            .collect()
+        GridClass::active_volumes(&self.class, volumes)
     }
 
     /// The fictitious values from the other level, (3.85)–(3.88): coarse fictitious nodes

@@ -107,7 +107,15 @@ impl ControlState {
     /// The state of a freshly built run of `scene`: its discretization and χ (the preset's, or
     /// the default where it has none); `session` prefixes every recording id.
     pub fn for_scene(session: impl Into<String>, info: &SimInfo, scene: &Scene) -> Self {
-        let chi = scene.hybrid.map_or(crate::scene::DEFAULT_CHI, |h| h.chi);
+        let adaptive_chi = scene.multigrid.as_ref().and_then(|g| match g.refinement {
+            crate::scene::Refinement::Adaptive { chi, .. } => Some(chi),
+            crate::scene::Refinement::Region(_) => None,
+        });
+        let chi = scene
+            .hybrid
+            .map(|h| h.chi)
+            .or(adaptive_chi)
+            .unwrap_or(crate::scene::DEFAULT_CHI);
         let discretization = super::rescene::discretization_of(scene);
         ControlState {
             preset: scene

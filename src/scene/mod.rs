@@ -126,7 +126,23 @@ pub enum Refinement {
     Region(Solid),
     /// The multi-adaptive switch (dynamic fracture, thesis §3.5): refined at the start within
     /// `band` of boundaries and pre-cracks, then around every coarse bond reaching χ·s0.
-    Adaptive { band: f64, chi: f64 },
+    Adaptive {
+        band: f64,
+        chi: f64,
+        transfer: Transfer,
+    },
+}
+
+/// How fine nodes take their values from the coarse level in the multi-adaptive scheme.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Transfer {
+    /// Inverse-distance weights of the 2ᵈ nearest coarse nodes, (3.85)–(3.88) (the thesis).
+    #[default]
+    Idw,
+    /// Tensor-product linear weights of the 2ᵈ coarse nodes around the fine node (linear
+    /// fields reproduced exactly; extrapolated at the body's edge).
+    Multilinear,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -93,6 +93,10 @@ pub struct MultigridTable {
     /// Dynamics: the switching margin χ of (3.80) on coarse bonds (default 0.95, the thesis's σ).
     #[serde(default)]
     pub chi: Option<f64>,
+    /// Dynamics: "idw" (default, the thesis's (3.85)–(3.88)) or "multilinear" for the values
+    /// fine nodes take from the coarse level.
+    #[serde(default)]
+    pub transfer: Option<super::Transfer>,
 }
 
 #[derive(Debug, Clone, Deserialize)]

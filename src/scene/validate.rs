@@ -381,7 +381,11 @@ fn multigrid(
     }
     let refinement = match physics {
         Physics::Diffusion | Physics::Corrosion => {
-            for (given, field) in [(m.band.is_some(), "band"), (m.chi.is_some(), "chi")] {
+            for (given, field) in [
+                (m.band.is_some(), "band"),
+                (m.chi.is_some(), "chi"),
+                (m.transfer.is_some(), "transfer"),
+            ] {
                 if given {
                     return Err(ctx.error(
                         &format!("multigrid.{field}"),
@@ -424,7 +428,11 @@ fn multigrid(
             }
             let chi = check_chi(m.chi.unwrap_or(DEFAULT_CHI))
                 .map_err(|e| ctx.error("multigrid.chi", e))?;
-            Refinement::Adaptive { band, chi }
+            Refinement::Adaptive {
+                band,
+                chi,
+                transfer: m.transfer.unwrap_or_default(),
+            }
         }
         Physics::Static => {
             return Err(ctx.error(
