@@ -76,6 +76,8 @@ pub struct MultiAdaptive<const D: usize> {
     weights: Vec<f64>,
     /// The nodes `transfer` refreshes, refined coarse nodes first, then fine fictitious ones.
     interpolated: Vec<u32>,
+    /// `transfer`'s values of one phase (kept: no allocation per step).
+    scratch: Vec<([f64; D], [f64; D])>,
     pub chi: f64,
     pub coarse: Quadrature,
     pub fine: Quadrature,
@@ -239,6 +241,7 @@ impl<const D: usize> MultiAdaptive<D> {
             sources,
             weights,
             interpolated: Vec::new(),
+            scratch: Vec::new(),
             chi,
             coarse: quadrature,
             fine: Quadrature {
@@ -341,9 +344,9 @@ impl<const D: usize> MultiAdaptive<D> {
     /// Refreshes the interpolated nodes (3.85)–(3.88): displacements (positions y = x + u are
     /// stored) and velocities, refined coarse nodes first (from the fine level), then fine
     /// fictitious nodes (from the coarse level, read after their update). Each phase computes
-    /// its values in parallel, then writes them.
+    /// its values in parallel into a kept buffer, then writes them.
     pub fn transfer(
-        &self,
+        &mut self,
         reference: &[[f64; D]],
         positions: &mut [[f64; D]],
         velocities: &mut [[f64; D]],
@@ -351,16 +354,18 @@ impl<const D: usize> MultiAdaptive<D> {
         let split = self
             .interpolated
             .partition_point(|&i| (i as usize) < self.coarse_count);
-        for phase in [&self.interpolated[..split], &self.interpolated[split..]] {
-            let values: Vec<([f64; D], [f64; D])> = phase
-                .par_iter()
-                .with_min_len(1024)
-                .map(|&i| self.value_from_other_level(i as usize, reference, positions, velocities))
-                .collect();
-            for (&i, (y, v)) in phase.iter().zip(values) {
+        let mut scratch = std::mem::take(&mut self.scratch);
+        for range in [0..split, split..self.interpolated.len()] {
+            let phase = &self.interpolated[range];
+            scratch.clear();
+            scratch.par_extend(phase.par_iter().with_min_len(1024).map(|&i| {
+                self.value_from_other_level(i as usize, reference, positions, velocities)
+            }));
+            for (&i, &(y, v)) in phase.iter().zip(&scratch) {
                 (positions[i as usize], velocities[i as usize]) = (y, v);
             }
         }
+        self.scratch = scratch;
     }
 
     /// Node i's position and velocity by IDW of the other level's displacements and

@@ -603,7 +603,7 @@ impl<const D: usize> DynamicSimulation<D> {
     /// Recomputes forces after positions were set by hand (tests, restarts); on a multi-grid
     /// scene the interpolated nodes first follow the other level.
     pub fn refresh_forces(&mut self) {
-        if let Some(g) = &self.multigrid {
+        if let Some(g) = self.multigrid.as_mut() {
             let c = self.columns;
             let nodes = &mut self.discretization.nodes;
             let reference = nodes.base.reference();

@@ -9,17 +9,10 @@ use std::time::{Duration, Instant};
 
 use peridyn::readback;
 
-fn peridyn(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_peridyn"))
-        .args(args)
-        .output()
-        .expect("run peridyn")
-}
+use crate::common::peridyn;
 
 fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("peridyn-checkpoint-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+    crate::common::temp("checkpoint", name)
 }
 
 fn ok(out: Output) -> String {

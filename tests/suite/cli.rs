@@ -2,18 +2,13 @@
 //! reads back with the expected layout, and an interrupted recording stays readable.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use peridyn::adapt::masks::{Phase, SchemeClass};
 use peridyn::readback;
 
-fn peridyn(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_peridyn"))
-        .args(args)
-        .output()
-        .expect("run peridyn")
-}
+use crate::common::peridyn;
 
 /// Runs peridyn, asserts success and returns its stdout.
 fn run_ok(args: &[&str]) -> String {
@@ -27,9 +22,7 @@ fn run_ok(args: &[&str]) -> String {
 }
 
 fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("peridyn-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+    crate::common::temp("test", name)
 }
 
 const GOOD: &str = r#"

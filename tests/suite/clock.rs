@@ -4,21 +4,13 @@
 //! hybrid scene, the frame times and crack metrics of a dynamics scene.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use peridyn::readback;
 
-fn peridyn(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_peridyn"))
-        .args(args)
-        .output()
-        .expect("run peridyn")
-}
+use crate::common::peridyn;
 
 fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("peridyn-clock-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+    crate::common::temp("clock", name)
 }
 
 /// What a run printed: its stdout, and the value after `prefix` on the line that has it.

@@ -3,21 +3,13 @@
 //! `peridyn replay --resimulate` reproduces its final damage field bit for bit.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
 
 use peridyn::readback;
 
-fn peridyn(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_peridyn"))
-        .args(args)
-        .output()
-        .expect("run peridyn")
-}
+use crate::common::peridyn;
 
 fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("peridyn-control-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+    crate::common::temp("control", name)
 }
 
 fn stdout_line<'a>(out: &'a str, prefix: &str) -> &'a str {

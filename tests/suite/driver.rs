@@ -10,9 +10,7 @@ use peridyn::record::{Outlet, RecordTarget};
 use peridyn::scene::Scene;
 
 fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("peridyn-driver-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+    crate::common::temp("driver", name)
 }
 
 fn driver(file: &std::path::Path) -> Driver {

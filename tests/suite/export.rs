@@ -10,17 +10,10 @@ use std::process::Command;
 use peridyn::readback::{self, Positions, Recording};
 
 fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("peridyn-export-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+    crate::common::temp("export", name)
 }
 
-fn peridyn(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_peridyn"))
-        .args(args)
-        .output()
-        .expect("run peridyn")
-}
+use crate::common::peridyn;
 
 #[derive(serde::Deserialize)]
 struct VtuFrame {

@@ -11,9 +11,7 @@ use re_log_channel::{DataSourceMessage, SmartMessagePayload};
 use rerun::log::{Chunk, LogMsg};
 
 fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("peridyn-remote-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+    crate::common::temp("remote", name)
 }
 
 fn free_port() -> u16 {
