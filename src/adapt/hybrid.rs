@@ -12,14 +12,14 @@
 
 use rayon::prelude::*;
 
+use super::bonds::{BondView, bond_squares, critical_margin};
 use super::masks::SchemeClass;
 use super::motion::MotionBound;
 use crate::discretization::family::{self, Families};
 use crate::model::pmb::PmbLaw;
 use crate::scene::{CheckSet, CrackGeometry, HybridSpec, Solid};
-use crate::scheme::VectorOperator;
-use crate::scheme::runs::RowRuns;
-use crate::scheme::wls::{self, Basis, FitError};
+use crate::scheme::wls::FitError;
+use crate::scheme::wls_rows::WlsRows;
 use crate::solver::State;
 
 /// A switching event: at `step` (time `time`), `nodes` nodes moved to Ω_s.
@@ -54,14 +54,7 @@ pub struct Hybrid<const D: usize> {
     /// Ω_s (standard) or Ω_w (WLS), per node.
     mask: Vec<SchemeClass>,
     /// Rows: the initial Ω_w nodes; a row is skipped once its node switched.
-    wls: VectorOperator<D>,
-    /// Node → its row in `wls` (u32::MAX for nodes that started in Ω_s).
-    row_of: Vec<u32>,
-    /// The translation runs of `wls` (the fast path of its product).
-    runs: RowRuns,
-    wls_force: Vec<[f64; D]>,
-    /// u = y − x by components (the runs' loads are contiguous).
-    displacement: [Vec<f64>; D],
+    wls: WlsRows<D>,
     /// Ω_w nodes whose bonds the switching check visits, and their bond count.
     check_nodes: Vec<u32>,
     in_check: Vec<bool>,
@@ -150,25 +143,14 @@ impl<const D: usize> Hybrid<D> {
         let rows: Vec<u32> = (0..mask.len() as u32)
             .filter(|&i| mask[i as usize] == SchemeClass::Wls)
             .collect();
-        let basis = Basis::new(D, 2);
         // (3.54)–(3.56): the linearized bond-based operator over the full ball.
-        let l = wls::bond_l(&basis, law.micromodulus, law.horizon, law.influence);
-        let wls =
-            wls::elasticity_operator(&rows, reference, families, &basis, &l, law.horizon, k_aux)?;
+        let wls = WlsRows::elasticity(&rows, reference, families, law, k_aux)?;
         let standard_nodes = mask.len() - rows.len();
-        let mut row_of = vec![u32::MAX; mask.len()];
-        for (r, &i) in rows.iter().enumerate() {
-            row_of[i as usize] = r as u32;
-        }
         let mask_len = mask.len();
         let mut hybrid = Hybrid {
             spec,
-            runs: RowRuns::new(&wls),
-            wls_force: vec![[0.0; D]; rows.len()],
-            displacement: std::array::from_fn(|_| vec![0.0; mask.len()]),
             mask,
             wls,
-            row_of,
             check_nodes: Vec::new(),
             in_check: Vec::new(),
             forward_start: (0..mask_len)
@@ -218,7 +200,7 @@ impl<const D: usize> Hybrid<D> {
 
     /// Mean collocation nodes per Ω_w node.
     pub fn collocation_size(&self) -> f64 {
-        self.wls.columns.len() as f64 / self.wls.rows.len().max(1) as f64
+        self.wls.collocation_size()
     }
 
     /// Changes χ in place (live control).
@@ -243,8 +225,7 @@ impl<const D: usize> Hybrid<D> {
     /// Bonds node `i`'s check visits under the policy.
     fn bond_count(&self, i: usize, families: &Families) -> u64 {
         if self.spec.check == CheckSet::Collocation {
-            let (op, r) = (&self.wls, self.row_of[i] as usize);
-            (op.offsets[r + 1] - op.offsets[r]) as u64 - 1
+            self.wls.columns(i).len() as u64 - 1
         } else {
             self.checked_bonds_of(i, families).len() as u64
         }
@@ -520,12 +501,7 @@ impl<const D: usize> Hybrid<D> {
             j != i && critical_margin(factor, r2, l2) <= 0.0
         };
         // The collocation policy checks row r's columns of the WLS operator instead.
-        let op = &self.wls;
-        let row_of = &self.row_of;
-        let columns = |i: usize| {
-            let r = row_of[i] as usize;
-            &op.columns[op.offsets[r]..op.offsets[r + 1]]
-        };
+        let columns = |i: usize| self.wls.columns(i);
         let has_critical = |&i: &u32| {
             let i = i as usize;
             mask[i] == SchemeClass::Wls && columns(i).iter().any(|&j| bond_critical(i, j as usize))
@@ -657,175 +633,24 @@ impl<const D: usize> Hybrid<D> {
 
     /// The linearized operator per unit mass on the Ω_w rows, −K u / ρ (the sign of the
     /// standard scheme's `apply_linearized`), for stable-step estimates; other rows untouched.
-    /// Rows in parallel; allocates the row values (setup work: power iterations).
     pub fn apply_linearized(&self, u: &[[f64; D]], density: f64, out: &mut [[f64; D]]) {
-        let (op, mask) = (&self.wls, &self.mask);
-        let rows: Vec<Option<[f64; D]>> = op
-            .rows
-            .par_iter()
-            .enumerate()
-            .map(|(r, &i)| (mask[i as usize] == SchemeClass::Wls).then(|| op.apply_row(r, u)))
-            .collect();
-        for (&i, force) in op.rows.iter().zip(rows) {
-            if let Some(force) = force {
-                out[i as usize] = force.map(|f| -f / density);
-            }
-        }
+        let mask = &self.mask;
+        self.wls
+            .apply_linearized(u, density, out, |i| mask[i] == SchemeClass::Wls);
     }
 
     /// WLS forces K u on the Ω_w nodes (u = positions − reference), kept per row; the
     /// simulation's acceleration pass picks them up with [`Self::wls_force_of`] (no scatter
     /// pass of its own).
     pub fn wls_forces(&mut self, reference: &[[f64; D]], positions: &[[f64; D]]) {
-        displacement_components(
-            self.displacement.each_mut().map(|u| u.as_mut_slice()),
-            reference,
-            positions,
-        );
-        let (op, mask) = (&self.wls, &self.mask);
-        let u: [&[f64]; D] = std::array::from_fn(|k| self.displacement[k].as_slice());
-        self.runs.apply(
-            op,
-            u,
-            |r| mask[op.rows[r] as usize] == SchemeClass::Wls,
-            &mut self.wls_force,
-        );
+        let mask = &self.mask;
+        self.wls
+            .forces(reference, positions, |i| mask[i] == SchemeClass::Wls);
     }
 
     /// Node i's WLS force from the last [`Self::wls_forces`], if it is in Ω_w.
     #[inline]
     pub fn wls_force_of(&self, i: usize) -> Option<[f64; D]> {
-        (self.mask[i] == SchemeClass::Wls).then(|| self.wls_force[self.row_of[i] as usize])
+        (self.mask[i] == SchemeClass::Wls).then(|| self.wls.force_of(i))
     }
-}
-
-/// u[k][i] = y_i[k] − x_i[k] for every component in one parallel pass over the nodes (the
-/// component slices are split together, so each node's positions are read once).
-fn displacement_components<const D: usize>(
-    u: [&mut [f64]; D],
-    reference: &[[f64; D]],
-    positions: &[[f64; D]],
-) {
-    const LEAF: usize = 4096;
-    if reference.len() <= LEAF {
-        for (i, (y, x)) in positions.iter().zip(reference).enumerate() {
-            for k in 0..D {
-                u[k][i] = y[k] - x[k];
-            }
-        }
-        return;
-    }
-    let mid = reference.len() / 2;
-    let mut low: [&mut [f64]; D] = std::array::from_fn(|_| &mut [][..]);
-    let mut high: [&mut [f64]; D] = std::array::from_fn(|_| &mut [][..]);
-    for (k, component) in u.into_iter().enumerate() {
-        let (a, b) = component.split_at_mut(mid);
-        (low[k], high[k]) = (a, b);
-    }
-    let ((x_low, x_high), (y_low, y_high)) = (reference.split_at(mid), positions.split_at(mid));
-    rayon::join(
-        || displacement_components(low, x_low, y_low),
-        || displacement_components(high, x_high, y_high),
-    );
-}
-
-/// The bond data a check reads, and whether the CPU runs its lanes 4-wide.
-struct BondView<'a, const D: usize> {
-    reference: &'a [[f64; D]],
-    positions: &'a [[f64; D]],
-    families: &'a Families,
-    #[cfg(target_arch = "x86_64")]
-    avx2: bool,
-}
-
-impl<'a, const D: usize> BondView<'a, D> {
-    fn new(reference: &'a [[f64; D]], positions: &'a [[f64; D]], families: &'a Families) -> Self {
-        BondView {
-            reference,
-            positions,
-            families,
-            #[cfg(target_arch = "x86_64")]
-            avx2: std::arch::is_x86_feature_detected!("avx2"),
-        }
-    }
-
-    /// The least g(r², l²) over bonds (i, j), j in `neighbors`.
-    #[inline(always)]
-    fn least(&self, i: usize, neighbors: &[u32], g: impl Fn(f64, f64) -> f64) -> f64 {
-        #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: the CPU supports AVX2 (detected in `new`).
-            return unsafe { least_avx2(i, neighbors, self.reference, self.positions, g) };
-        }
-        least_portable(i, neighbors, self.reference, self.positions, g)
-    }
-}
-
-/// `least_portable` compiled for AVX2 (4-wide lanes, no FMA: bit-identical results).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2")]
-fn least_avx2<const D: usize>(
-    i: usize,
-    neighbors: &[u32],
-    reference: &[[f64; D]],
-    positions: &[[f64; D]],
-    g: impl Fn(f64, f64) -> f64,
-) -> f64 {
-    least_portable(i, neighbors, reference, positions, g)
-}
-
-/// Minimum of g over the bonds in `LANES` independent lanes (a min reduction does not
-/// vectorize otherwise); NaN values are ignored, as by `f64::min`.
-#[inline(always)]
-fn least_portable<const D: usize>(
-    i: usize,
-    neighbors: &[u32],
-    reference: &[[f64; D]],
-    positions: &[[f64; D]],
-    g: impl Fn(f64, f64) -> f64,
-) -> f64 {
-    const LANES: usize = 4;
-    let mut lanes = [f64::INFINITY; LANES];
-    let chunks = neighbors.chunks_exact(LANES);
-    for &j in chunks.remainder() {
-        let (r2, l2) = bond_squares(i, j as usize, reference, positions);
-        lanes[0] = lesser(lanes[0], g(r2, l2));
-    }
-    for chunk in chunks {
-        for t in 0..LANES {
-            let (r2, l2) = bond_squares(i, chunk[t] as usize, reference, positions);
-            lanes[t] = lesser(lanes[t], g(r2, l2));
-        }
-    }
-    lanes.into_iter().fold(f64::INFINITY, lesser)
-}
-
-/// min(a, v) for a non-NaN a, ignoring a NaN v; branch-free (a SIMD min).
-#[inline(always)]
-fn lesser(a: f64, v: f64) -> f64 {
-    if v < a { v } else { a }
-}
-
-/// The bond criterion (3.80) for every check path: a bond is critical when f l² − r² ≤ 0,
-/// i.e. r² ≥ (1 + χ s0)² l² (the rounded difference has the exact difference's sign).
-#[inline(always)]
-fn critical_margin(factor: f64, r2: f64, l2: f64) -> f64 {
-    factor * l2 - r2
-}
-
-/// Squared current and reference lengths of bond (i, j).
-#[inline(always)]
-fn bond_squares<const D: usize>(
-    i: usize,
-    j: usize,
-    reference: &[[f64; D]],
-    positions: &[[f64; D]],
-) -> (f64, f64) {
-    (0..D).fold((0.0, 0.0), |(r2, l2), k| {
-        let (dy, dx) = (
-            positions[j][k] - positions[i][k],
-            reference[j][k] - reference[i][k],
-        );
-        (r2 + dy * dy, l2 + dx * dx)
-    })
 }

@@ -26,6 +26,7 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
+use super::bonds::{BondView, bond_squares, critical_margin};
 use super::hybrid;
 use super::masks::{GridClass, SchemeClass};
 use super::multigrid::{idw, subcells, tree};
@@ -403,29 +404,48 @@ impl<const D: usize> MultiAdaptive<D> {
     /// ‖y_j − y_i‖² ≥ ((1 + χ s0) ‖ξ‖)², so no square root is taken.
     pub fn critical_bonds(
         &self,
+        reference: &[[f64; D]],
         positions: &[[f64; D]],
         families: &Families,
         critical_stretch: f64,
     ) -> Vec<(u32, u32)> {
         let factor = (1.0 + self.chi * critical_stretch).powi(2);
         let class = &self.class;
-        (0..self.coarse_count)
+        let bonds = BondView::new(reference, positions, families);
+        let margin = move |r2, l2| critical_margin(factor, r2, l2);
+        // Every bond of every active coarse node, in SIMD lanes and without allocating: the
+        // common case finds nothing (a bond between two active nodes is seen from both ends).
+        let critical_nodes: Vec<usize> = (0..self.coarse_count)
             .into_par_iter()
             .with_min_len(256)
-            .filter(|&i| class[i] == GridClass::CoarseActive)
-            .flat_map_iter(|i| {
-                let y = positions[i];
-                families.range(i).filter_map(move |b| {
-                    let j = families.neighbors[b] as usize;
-                    if j < i && class[j] == GridClass::CoarseActive {
-                        return None;
-                    }
-                    let r2: f64 = (0..D).map(|k| (positions[j][k] - y[k]).powi(2)).sum();
-                    let l = families.lengths[b];
-                    (r2 >= factor * l * l).then_some((i as u32, j as u32))
-                })
+            .filter(|&i| {
+                class[i] == GridClass::CoarseActive
+                    && bonds.least(i, &families.neighbors[families.range(i)], margin) <= 0.0
             })
-            .collect()
+            .collect();
+        let mut pairs: Vec<(u32, u32)> = critical_nodes
+            .iter()
+            .flat_map(|&i| {
+                families.neighbors[families.range(i)]
+                    .iter()
+                    .filter(move |&&j| {
+                        let (r2, l2) = bond_squares(i, j as usize, reference, positions);
+                        margin(r2, l2) <= 0.0
+                    })
+                    .map(move |&j| (i as u32, j))
+            })
+            .map(|(i, j)| {
+                // Each bond once, from its lower-index end when both ends are active.
+                if j < i && class[j as usize] == GridClass::CoarseActive {
+                    (j, i)
+                } else {
+                    (i, j)
+                }
+            })
+            .collect();
+        pairs.sort_unstable();
+        pairs.dedup();
+        pairs
     }
 
     /// Refines the cells of H₁ ∪ H₂ of every critical bond: the newly active fine nodes take

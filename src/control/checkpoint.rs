@@ -37,6 +37,11 @@ pub struct Header {
     /// The grid ratio of a multi-grid scene.
     #[serde(default)]
     pub ratio: Option<usize>,
+    /// A fine region or band chosen live (multi-grid scenes).
+    #[serde(default)]
+    pub region: Option<String>,
+    #[serde(default)]
+    pub band: Option<String>,
     /// The frame cadence.
     pub every: u64,
     pub chi: f64,
@@ -57,6 +62,8 @@ impl Header {
             dx: self.dx,
             scheme: self.scheme.clone(),
             ratio: self.ratio,
+            region: self.region.clone(),
+            band: self.band.clone(),
         }
     }
 
@@ -226,6 +233,8 @@ mod tests {
                 dx: 1e-3,
                 scheme: "standard".into(),
                 ratio: None,
+                region: None,
+                band: Some("8 mm".into()),
                 every: 10,
                 chi: 0.95,
                 script: vec!["at 20 steps set chi 0.9".into()],

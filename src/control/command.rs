@@ -3,6 +3,7 @@
 //! The text form is the one scripts use and recordings store: `play`, `pause`, `step [N]`,
 //! `reset`, `set chi 0.9`, `set dt 2 ns [override]`, `set dt 0.5 stable`, `set m 3 [restart]`,
 //! `set dx 0.5 mm [restart]`, `set scheme standard [restart]`, `set ratio 2 [restart]`,
+//! `set region { box = { min = ["0 mm"], max = ["2 mm"] } } [restart]`, `set band 8 mm [restart]`,
 //! `set every 10`,
 //! `save start FILE.rrd`, `save stop`. `Display` writes the canonical text, which parses back
 //! to the same command.
@@ -42,6 +43,12 @@ pub enum Command {
     SetScheme(String),
     /// Grid ratio Δx⁺/Δx⁻ of a multi-grid scene (rebuild).
     SetGridRatio(usize),
+    /// The fine region Ω⁻ of a multi-grid diffusion or corrosion scene, as the preset's
+    /// `multigrid.region` shape (an inline TOML table; rebuild).
+    SetFineRegion(String),
+    /// The initial fine band of a multi-adaptive scene, as the preset's `multigrid.band`
+    /// ("8 mm", "2 horizon"; rebuild).
+    SetFineBand(String),
     /// Log a frame every this many steps.
     SetEvery(u64),
     StartSaving(PathBuf),
@@ -59,7 +66,8 @@ pub enum Command {
 pub const FORMS: &str = "play, pause, step [N], reset, set chi X, set dt VALUE [override] \
                          (VALUE: a time like `2 ns` or `0.5 stable`), set m X [restart], \
                          set dx LENGTH [restart], set scheme NAME [restart], set every K, \
-                         set ratio N [restart], \
+                         set ratio N [restart], set region {SHAPE} [restart], \
+                         set band LENGTH [restart], \
                          save start FILE.rrd, save stop, replay FILE.rrd, \
                          load PRESET [VARIANT]";
 
@@ -73,6 +81,8 @@ impl Command {
                 | Command::SetSpacing(_)
                 | Command::SetScheme(_)
                 | Command::SetGridRatio(_)
+                | Command::SetFineRegion(_)
+                | Command::SetFineBand(_)
         )
     }
 
@@ -141,6 +151,26 @@ impl Command {
                     .map_err(|_| format!("ratio: expected a whole number (Δx⁺/Δx⁻), got `{v}`")),
                 _ => Err("set ratio: expected one whole number, e.g. `set ratio 2 restart`".into()),
             },
+            ["set", "region", ..] => {
+                let shape = strip_restart(2).join(" ");
+                let parsed = toml::from_str::<toml::Table>(&format!("region = {shape}"));
+                match parsed.as_ref().map(|t| t.get("region")) {
+                    Ok(Some(toml::Value::Table(_))) => Ok(Command::SetFineRegion(shape)),
+                    _ => Err(format!(
+                        "set region: expected a shape as an inline table, e.g. \
+                         `set region {{ box = {{ min = [\"0 mm\"], max = [\"2 mm\"] }} }}`, got `{shape}`"
+                    )),
+                }
+            }
+            ["set", "band", ..] => {
+                let band = strip_restart(2).join(" ");
+                match crate::scene::units::parse_measure(&band) {
+                    Ok(_) => Ok(Command::SetFineBand(band)),
+                    Err(e) => Err(format!(
+                        "set band: {e} (a length like `8 mm` or `2 horizon`)"
+                    )),
+                }
+            }
             ["set", "scheme", ..] => match strip_restart(2).as_slice() {
                 [name] => Ok(Command::SetScheme(name.to_string())),
                 _ => Err("set scheme: expected one name, e.g. `set scheme standard`".into()),
@@ -169,7 +199,7 @@ impl Command {
                 })
             }
             ["set", what, ..] => Err(format!(
-                "unknown setting `{what}`; allowed: chi, dt, m, dx, scheme, every, ratio"
+                "unknown setting `{what}`; allowed: chi, dt, m, dx, scheme, every, ratio, region, band"
             )),
             [first, ..] => {
                 let known = [
@@ -234,6 +264,8 @@ impl fmt::Display for Command {
             Command::SetSpacing(dx) => write!(f, "set dx {dx:?} m restart"),
             Command::SetScheme(s) => write!(f, "set scheme {s} restart"),
             Command::SetGridRatio(r) => write!(f, "set ratio {r} restart"),
+            Command::SetFineRegion(shape) => write!(f, "set region {shape} restart"),
+            Command::SetFineBand(band) => write!(f, "set band {band} restart"),
             Command::SetEvery(k) => write!(f, "set every {k}"),
             Command::StartSaving(p) => write!(f, "save start {}", p.display()),
             Command::StopSaving => write!(f, "save stop"),
@@ -278,6 +310,8 @@ mod tests {
             Command::parse("set dx 0.5 mm").unwrap(),
             Command::SetSpacing(0.0005)
         );
+        assert!(Command::parse("set region box").is_err());
+        assert!(Command::parse("set band wide").is_err());
         assert_eq!(
             Command::parse("save start out dir/a.rrd").unwrap(),
             Command::StartSaving("out dir/a.rrd".into())
@@ -296,6 +330,8 @@ mod tests {
             "set dt 0.45 stable",
             "set m 3.0 restart",
             "set dx 0.0005 m restart",
+            "set region { box = { min = [-5.25], max = [5.25] } } restart",
+            "set band 2 horizon restart",
             "set scheme standard restart",
             "set ratio 2 restart",
             "set every 7",

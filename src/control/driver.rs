@@ -130,6 +130,8 @@ impl Driver {
             dx: d.dx,
             scheme: d.scheme.clone(),
             ratio: d.ratio,
+            region: d.region.clone(),
+            band: d.band.clone(),
             every: self.state.every,
             chi: self.state.chi,
             script: remaining.iter().map(Timed::to_line).collect(),

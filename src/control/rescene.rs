@@ -32,6 +32,8 @@ pub fn discretization_of(scene: &Scene) -> Discretization {
         dx: scene.spacing,
         scheme,
         ratio: scene.multigrid.as_ref().map(|g| g.ratio),
+        region: None,
+        band: None,
     }
 }
 
@@ -49,7 +51,25 @@ pub fn with_discretization(base: &Scene, choice: &Discretization) -> Result<Scen
         overrides.insert("scheme".into(), choice.scheme.clone().into());
     }
     let ratio = choice.ratio.filter(|_| choice.ratio != own.ratio);
-    if overrides.is_empty() && ratio.is_none() {
+    let mut multigrid_overrides = toml::Table::new();
+    if let Some(r) = ratio {
+        multigrid_overrides.insert("ratio".into(), toml::Value::Integer(r as i64));
+    }
+    if let Some(band) = &choice.band {
+        multigrid_overrides.insert("band".into(), band.clone().into());
+    }
+    if let Some(shape) = &choice.region {
+        let parsed = toml::from_str::<toml::Table>(&format!("region = {shape}")).map_err(|e| {
+            SceneError {
+                file: base.source.clone(),
+                field: "multigrid.region".into(),
+                line: None,
+                message: format!("`{shape}` is not an inline table: {e}"),
+            }
+        })?;
+        multigrid_overrides.extend(parsed);
+    }
+    if overrides.is_empty() && multigrid_overrides.is_empty() {
         return Ok(base.clone());
     }
     let invalid = |message: String| SceneError {
@@ -81,15 +101,15 @@ pub fn with_discretization(base: &Scene, choice: &Discretization) -> Result<Scen
         .map(|k| format!("discretization.{k}"))
         .collect();
     discretization.extend(overrides);
-    if let Some(r) = ratio {
+    if !multigrid_overrides.is_empty() {
         let multigrid = target
             .entry("multigrid")
             .or_insert_with(|| toml::Value::Table(toml::Table::new()));
         let Some(multigrid) = multigrid.as_table_mut() else {
             return Err(invalid("`multigrid` is not a table".into()));
         };
-        multigrid.insert("ratio".into(), toml::Value::Integer(r as i64));
-        changed.push("multigrid.ratio".into());
+        changed.extend(multigrid_overrides.keys().map(|k| format!("multigrid.{k}")));
+        multigrid.extend(multigrid_overrides);
     }
     let text = toml::to_string(&table).map_err(|e| invalid(e.to_string()))?;
     // `--set` overrides still apply, except those of the values this rebuild changes.
@@ -173,6 +193,48 @@ mod tests {
         assert_eq!(two.spacing, base.spacing);
         let plain = Scene::load("corrosion-1d", None).unwrap();
         assert_eq!(discretization_of(&plain).ratio, None);
+    }
+
+    #[test]
+    fn a_fine_region_or_band_choice_rebuilds_the_fine_level() {
+        use crate::scene::Refinement;
+        let base = Scene::load("corrosion-1d", Some("multigrid")).unwrap();
+        let own = discretization_of(&base);
+        let narrow = with_discretization(
+            &base,
+            &Discretization {
+                region: Some("{ box = { min = [-5.25], max = [5.25] } }".into()),
+                ..own.clone()
+            },
+        )
+        .unwrap();
+        let Refinement::Region(region) = &narrow.multigrid.as_ref().unwrap().refinement else {
+            panic!("corrosion refines a region");
+        };
+        assert!(region.contains(&[5.0], 0.0) && !region.contains(&[6.0], 0.0));
+        // A band on a diffusion scene is refused by the preset validation, naming the field.
+        let e = with_discretization(
+            &base,
+            &Discretization {
+                band: Some("8 mm".into()),
+                ..own
+            },
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("multigrid.band"), "{e}");
+        let kw = Scene::load("kalthoff-winkler-multigrid", Some("small")).unwrap();
+        let wide = with_discretization(
+            &kw,
+            &Discretization {
+                band: Some("2 horizon".into()),
+                ..discretization_of(&kw)
+            },
+        )
+        .unwrap();
+        let Refinement::Adaptive { band, .. } = wide.multigrid.as_ref().unwrap().refinement else {
+            panic!("dynamics refines adaptively");
+        };
+        assert_eq!(band, 2.0 * kw.horizon);
     }
 
     #[test]

@@ -47,6 +47,11 @@ pub struct Discretization {
     pub scheme: String,
     /// Grid ratio Δx⁺/Δx⁻ of a multi-grid scene (None: one grid).
     pub ratio: Option<usize>,
+    /// A fine region Ω⁻ chosen live (`multigrid.region` as an inline TOML table; None: the
+    /// preset's own).
+    pub region: Option<String>,
+    /// An initial fine band chosen live (`multigrid.band`; None: the preset's own).
+    pub band: Option<String>,
 }
 
 /// Live figures shown by the panel, updated from frames.
@@ -308,6 +313,16 @@ impl ControlState {
                 }
                 Effect::Rebuild
             }
+            Command::SetFineRegion(_) | Command::SetFineBand(_) => {
+                if self.discretization.ratio.is_none() {
+                    return Err(
+                        "this scene has one grid: a fine region or band applies to scenes with \
+                         a [multigrid] table"
+                            .into(),
+                    );
+                }
+                Effect::Rebuild
+            }
             Command::SetScheme(name) => {
                 check_scheme(name)?;
                 Effect::Rebuild
@@ -363,6 +378,8 @@ impl ControlState {
             Command::SetSpacing(dx) => self.discretization.dx = *dx,
             Command::SetScheme(s) => self.discretization.scheme = s.clone(),
             Command::SetGridRatio(r) => self.discretization.ratio = Some(*r),
+            Command::SetFineRegion(shape) => self.discretization.region = Some(shape.clone()),
+            Command::SetFineBand(band) => self.discretization.band = Some(band.clone()),
             Command::SetEvery(k) => self.every = *k,
             Command::StartSaving(p) => self.saving = Some(p.clone()),
             Command::StopSaving => self.saving = None,
@@ -421,6 +438,8 @@ mod tests {
                 dx: 1e-3,
                 scheme: "standard".into(),
                 ratio: None,
+                region: None,
+                band: None,
             },
             crate::scene::DEFAULT_CHI,
         )
@@ -616,6 +635,7 @@ mod tests {
             ),
             (Command::StopSaving, "not saving"),
             (Command::SetGridRatio(2), "one grid"),
+            (Command::SetFineBand("8 mm".into()), "one grid"),
             (Command::SetScheme("nope".into()), "standard"),
             (Command::Replay("/no/such.rrd".into()), "no recording"),
         ];

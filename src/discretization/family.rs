@@ -196,6 +196,30 @@ pub fn distance_to_crack(crack: &CrackGeometry, x: &[f64]) -> f64 {
     }
 }
 
+/// A lower bound of the distance from `x` to a pre-crack: exact for points and segments, the
+/// distance to the patch's plane for a patch (clamped oblique coordinates can overshoot).
+pub fn crack_distance_bound(crack: &CrackGeometry, x: &[f64]) -> f64 {
+    match crack {
+        CrackGeometry::Patch {
+            origin,
+            edge_a,
+            edge_b,
+        } => {
+            let n = [
+                edge_a[1] * edge_b[2] - edge_a[2] * edge_b[1],
+                edge_a[2] * edge_b[0] - edge_a[0] * edge_b[2],
+                edge_a[0] * edge_b[1] - edge_a[1] * edge_b[0],
+            ];
+            let norm = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            if norm == 0.0 {
+                return 0.0;
+            }
+            ((0..3).map(|k| n[k] * (x[k] - origin[k])).sum::<f64>() / norm).abs()
+        }
+        _ => distance_to_crack(crack, x),
+    }
+}
+
 fn cross2(o: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
 }

@@ -18,6 +18,9 @@ pub struct PanelInputs {
     pub scheme: String,
     /// The grid ratio of a multi-grid scene.
     pub ratio: usize,
+    /// Ω⁻ of a multi-grid scene as typed: a band length ("8 mm", "2 horizon") or a region
+    /// shape as an inline TOML table ("{ box = … }"); empty keeps the preset's.
+    pub fine_text: String,
     pub every: u64,
     pub save_path: String,
     /// The preset and variant picked for `Load` ("" for the preset's base).
@@ -86,6 +89,11 @@ impl PanelInputs {
         self.dx_mm_text = format!("{}", d.dx * 1e3);
         self.scheme = d.scheme.clone();
         self.ratio = d.ratio.unwrap_or(0);
+        self.fine_text = d
+            .region
+            .clone()
+            .or_else(|| d.band.clone())
+            .unwrap_or_default();
         self.every = state.every;
         if self.save_path.is_empty() {
             self.save_path = format!("{}.rrd", state.recording_id());
@@ -304,6 +312,10 @@ fn rebuild_parameters(
             ui.add(egui::DragValue::new(&mut inputs.ratio).range(2..=16))
                 .labelled_by(label.id);
             ui.end_row();
+            let label = ui.label("Ω⁻: band or {region}");
+            ui.add(egui::TextEdit::singleline(&mut inputs.fine_text).hint_text("preset's"))
+                .labelled_by(label.id);
+            ui.end_row();
         }
     });
     if ui.button("Rebuild").clicked() {
@@ -326,6 +338,21 @@ fn rebuild_parameters(
         }
         if d.ratio.is_some_and(|r| r != inputs.ratio) {
             out.push(Command::SetGridRatio(inputs.ratio));
+        }
+        let fine = inputs.fine_text.trim();
+        let current = d.region.as_deref().or(d.band.as_deref()).unwrap_or("");
+        if d.ratio.is_some() && !fine.is_empty() && fine != current {
+            match Command::parse(&format!(
+                "set {} {fine}",
+                if fine.starts_with('{') {
+                    "region"
+                } else {
+                    "band"
+                }
+            )) {
+                Ok(command) => out.push(command),
+                Err(e) => inputs.error = Some(format!("Ω⁻ not applied: {e}")),
+            }
         }
     }
 }

@@ -117,6 +117,19 @@ pub struct HybridSpec {
 pub struct MultigridSpec {
     pub ratio: usize,
     pub refinement: Refinement,
+    /// The coarse level's scheme (the fine level always runs the standard scheme).
+    pub coarse: CoarseScheme,
+}
+
+/// The scheme on the coarse level of a multi-adaptive scene (thesis §3.5): "adaptive, standard"
+/// or "adaptive, hybrid" (WLS-2 collocation on the coarse active nodes, auxiliary grid δ/k_aux).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum CoarseScheme {
+    #[default]
+    Standard,
+    Wls {
+        collocation_factor: usize,
+    },
 }
 
 /// Where the fine level is active.

@@ -97,6 +97,22 @@ pub struct MultigridTable {
     /// fine nodes take from the coarse level.
     #[serde(default)]
     pub transfer: Option<super::Transfer>,
+    /// Dynamics: the coarse level's scheme, "standard" (default, "adaptive, standard") or
+    /// "wls" (WLS-2 collocation, the thesis's "adaptive, hybrid").
+    #[serde(default)]
+    pub coarse: Option<CoarseKind>,
+    /// With `coarse = "wls"`: the auxiliary grid δ/collocation_factor (default 4, the thesis's
+    /// δ/4: 49 collocation nodes at m⁺ = 12 in 2D; 3 in 3D, 123 nodes).
+    #[serde(default)]
+    pub collocation_factor: Option<usize>,
+}
+
+/// The `multigrid.coarse` scheme names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CoarseKind {
+    Standard,
+    Wls,
 }
 
 #[derive(Debug, Clone, Deserialize)]

@@ -4,7 +4,7 @@ use super::error::{ErrorContext, SceneError};
 use super::geometry::{Point, si};
 use super::reference;
 use super::schema::{
-    BoundaryLayer, Perturbation, Physics, Precrack, Preset, SchemeKind, VelocityField,
+    BoundaryLayer, CoarseKind, Perturbation, Physics, Precrack, Preset, SchemeKind, VelocityField,
 };
 use super::units::{Measure, Relative};
 use super::*;
@@ -385,6 +385,8 @@ fn multigrid(
                 (m.band.is_some(), "band"),
                 (m.chi.is_some(), "chi"),
                 (m.transfer.is_some(), "transfer"),
+                (m.coarse.is_some(), "coarse"),
+                (m.collocation_factor.is_some(), "collocation_factor"),
             ] {
                 if given {
                     return Err(ctx.error(
@@ -441,9 +443,32 @@ fn multigrid(
             ));
         }
     };
+    let coarse = match m.coarse.unwrap_or(CoarseKind::Standard) {
+        CoarseKind::Standard if m.collocation_factor.is_some() => {
+            return Err(ctx.error(
+                "multigrid.collocation_factor",
+                "belongs to a WLS coarse level: set multigrid.coarse = \"wls\" or remove it",
+            ));
+        }
+        CoarseKind::Standard => CoarseScheme::Standard,
+        CoarseKind::Wls => {
+            let default = if dim == 3 { 3 } else { 4 };
+            let k = m.collocation_factor.unwrap_or(default);
+            if !(1..=64).contains(&k) {
+                return Err(ctx.error(
+                    "multigrid.collocation_factor",
+                    format!("k_aux must be in 1..=64, got {k}"),
+                ));
+            }
+            CoarseScheme::Wls {
+                collocation_factor: k,
+            }
+        }
+    };
     Ok(Some(MultigridSpec {
         ratio: m.ratio,
         refinement,
+        coarse,
     }))
 }
 

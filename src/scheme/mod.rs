@@ -5,6 +5,7 @@ use rayon::prelude::*;
 pub mod runs;
 pub mod standard;
 pub mod wls;
+pub mod wls_rows;
 
 /// A per-node flag of the standard bond loop: rows whose entry is `skipped` are left to
 /// another scheme (the hybrid's Ω_w).

@@ -14,8 +14,9 @@ use crate::frame::{ClassField, Frame, NodeField};
 use crate::integrate::{self, stability, verlet};
 use crate::metrics;
 use crate::model::pmb::PmbLaw;
-use crate::scene::{Condition, InitialVelocity, Scene, SceneError};
+use crate::scene::{CoarseScheme, Condition, InitialVelocity, Scene, SceneError};
 use crate::scheme::standard::{NodeTerms, Standard};
+use crate::scheme::wls_rows::WlsRows;
 use crate::solver::{
     Clock, Integrator, Lap, Param, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
 };
@@ -71,6 +72,9 @@ pub struct DynamicSimulation<const D: usize> {
     pub multigrid: Option<MultiAdaptive<D>>,
     /// Coarse bonds broken (the multi-adaptive invariant: damage stays on the fine level).
     pub coarse_broken: u64,
+    /// "Adaptive, hybrid" (thesis §3.5): WLS rows of the initially active coarse nodes (the
+    /// coarse active set only shrinks); `None` runs the standard scheme on the coarse level.
+    pub coarse_wls: Option<WlsRows<D>>,
 }
 
 /// The standard scheme over one discretization's reference configuration.
@@ -119,25 +123,32 @@ fn level_damage_weights<const D: usize>(
     (pick(&coarse.0, &fine.0), pick(&coarse.1, &fine.1))
 }
 
-/// The stable step of a multi-adaptive scene: (3.8) over every node of both levels (any may
-/// become active), and the power-iterated sharp limit of the operator on the initially active
-/// rows of both levels (each with its own quadrature).
+/// The stable step of a multi-adaptive scene: (3.8) over every node of the standard levels
+/// (any may become active), and the power-iterated sharp limit of the operator on the initially
+/// active standard rows of both levels (each with its own quadrature). With a WLS coarse level
+/// its rows' spectral radius bounds Δt too ((3.8) does not cover them; the levels' coupling
+/// through fictitious nodes is left out of both estimates).
 fn level_stable_step<const D: usize>(
     discretization: &Discretization<D>,
     law: &PmbLaw,
     grid: &MultiAdaptive<D>,
     intact: &[u8],
     density: f64,
+    coarse_wls: Option<&WlsRows<D>>,
 ) -> StableStep {
     let (coarse, fine) = (
         level_scheme(discretization, law, &grid.coarse),
         level_scheme(discretization, law, &grid.fine),
     );
     let split = discretization.families.offsets[grid.coarse_count];
-    let guaranteed =
-        integrate::stable_step(density, &coarse.stiffness_sums()[..grid.coarse_count]).min(
-            integrate::stable_step(density, &fine.stiffness_sums()[grid.coarse_count..]),
-        );
+    let mut guaranteed =
+        integrate::stable_step(density, &fine.stiffness_sums()[grid.coarse_count..]);
+    if coarse_wls.is_none() {
+        guaranteed = guaranteed.min(integrate::stable_step(
+            density,
+            &coarse.stiffness_sums()[..grid.coarse_count],
+        ));
+    }
     let mut coefficients = coarse.linearized_coefficients(density);
     coefficients[split..].copy_from_slice(&fine.linearized_coefficients(density)[split..]);
     let masses: Vec<f64> = grid
@@ -147,13 +158,26 @@ fn level_stable_step<const D: usize>(
         .collect();
     let n = discretization.len();
     let rows = &grid.rows;
+    let wls = coarse_wls.is_some();
     let lambda_max = stability::max_eigenvalue::<D>(n, &masses, POWER_ITERATIONS, |u, out| {
         out.fill([0.0; D]);
-        coarse.apply_linearized_masked(&coefficients, intact, u, out, |i| rows.coarse[i] != 0);
+        coarse.apply_linearized_masked(&coefficients, intact, u, out, |i| {
+            wls || rows.coarse[i] != 0
+        });
         fine.apply_linearized_masked(&coefficients, intact, u, out, |i| rows.fine[i] != 0);
     });
+    let mut sharp = stability::verlet_step(lambda_max).max(guaranteed);
+    if let Some(w) = coarse_wls {
+        let radius = stability::spectral_radius(n * D, HYBRID_ITERATIONS, |v, out| {
+            let u = v.as_chunks::<D>().0;
+            let out = out.as_chunks_mut::<D>().0;
+            out.fill([0.0; D]);
+            w.apply_linearized(u, density, out, |i| rows.coarse[i] == 0);
+        });
+        sharp = sharp.min(stability::verlet_step(radius));
+    }
     StableStep {
-        sharp: stability::verlet_step(lambda_max).max(guaranteed),
+        sharp,
         guaranteed,
         integrator: Integrator::Verlet,
     }
@@ -246,10 +270,34 @@ impl<const D: usize> DynamicSimulation<D> {
                 Some(h)
             }
         };
+        let coarse_wls = match (&multigrid, scene.multigrid.as_ref().map(|m| m.coarse)) {
+            (Some(g), Some(CoarseScheme::Wls { collocation_factor })) => {
+                let rows: Vec<u32> = (0..g.coarse_count as u32)
+                    .filter(|&i| g.class[i as usize].is_active())
+                    .collect();
+                let w = WlsRows::elasticity(
+                    &rows,
+                    discretization.nodes.reference(),
+                    &discretization.families,
+                    &law,
+                    collocation_factor,
+                )
+                .map_err(|e| scene.error("multigrid.collocation_factor", e.to_string()))?;
+                Some(w)
+            }
+            _ => None,
+        };
         let scheme = standard(&discretization, &law);
         let (stable, (family_weight, precracked)) = match &multigrid {
             Some(g) => (
-                level_stable_step(&discretization, &law, g, &intact, density),
+                level_stable_step(
+                    &discretization,
+                    &law,
+                    g,
+                    &intact,
+                    density,
+                    coarse_wls.as_ref(),
+                ),
                 level_damage_weights(&discretization, &law, g, &intact),
             ),
             None => (
@@ -300,6 +348,7 @@ impl<const D: usize> DynamicSimulation<D> {
             hybrid_violations: 0,
             multigrid,
             coarse_broken: 0,
+            coarse_wls,
         };
         sim.apply_initial_velocity();
         sim.apply_constraints();
@@ -469,10 +518,20 @@ impl<const D: usize> DynamicSimulation<D> {
         if let Some(g) = &self.multigrid {
             // Each level's active rows with its own quadrature; every neighbour of an active
             // node is active or fictitious (interpolated before this pass).
+            if let Some(w) = self.coarse_wls.as_mut() {
+                // Every row is a coarse node's; the inactive ones are left alone.
+                w.forces(nodes.base.reference(), positions, |i| {
+                    g.class[i].is_active()
+                });
+            }
+            let wls = self.coarse_wls.is_some();
             for (quadrature, rows, coarse) in [
                 (&g.coarse, &g.rows.coarse, true),
                 (&g.fine, &g.rows.fine, false),
             ] {
+                if coarse && wls {
+                    continue;
+                }
                 let scheme = Standard {
                     reference: nodes.base.reference(),
                     volumes: nodes.base.volumes(),
@@ -516,8 +575,10 @@ impl<const D: usize> DynamicSimulation<D> {
                     (a, v, t, &[])
                 }
             };
-        let (terms, hybrid) = (&*terms, self.hybrid.as_ref());
+        let terms = &*terms;
         let class = self.multigrid.as_ref().map(|g| g.class.as_slice());
+        let (hybrid, coarse_wls) = (self.hybrid.as_ref(), self.coarse_wls.as_ref());
+        let wls_force = |i: usize| wls_force_of(hybrid, coarse_wls.zip(self.multigrid.as_ref()), i);
         accelerations
             .par_iter_mut()
             .zip(velocities)
@@ -529,10 +590,7 @@ impl<const D: usize> DynamicSimulation<D> {
                     *a = [0.0; D];
                     return 0.0;
                 }
-                let force = match hybrid.and_then(|h| h.wls_force_of(i)) {
-                    Some(force) => force,
-                    None => terms[i].force,
-                };
+                let force = wls_force(i).unwrap_or(terms[i].force);
                 for k in 0..D {
                     let b = if body.is_empty() { 0.0 } else { body[i][k] };
                     a[k] = (force[k] + b) * inv_rho;
@@ -579,10 +637,17 @@ impl<const D: usize> DynamicSimulation<D> {
             + self.nodes().memory_bytes()
     }
 
-    /// Strain-energy density W_i of one node (J/m³).
+    /// Strain-energy density W_i of one node (J/m³), over its own level's family on a
+    /// multi-grid scene.
     pub fn energy_density(&self, i: usize) -> f64 {
-        self.scheme()
-            .energy_density(i, self.positions(), &self.intact)
+        let scheme = match &self.multigrid {
+            Some(g) if i < g.coarse_count => {
+                level_scheme(&self.discretization, &self.law, &g.coarse)
+            }
+            Some(g) => level_scheme(&self.discretization, &self.law, &g.fine),
+            None => self.scheme(),
+        };
+        scheme.energy_density(i, self.positions(), &self.intact)
     }
 
     /// Over the nodes that carry mass (the active ones of a multi-grid scene).
@@ -592,12 +657,27 @@ impl<const D: usize> DynamicSimulation<D> {
 
     /// Force density on each node at the current positions (N/m³), without body forces.
     pub fn force_density(&self) -> Vec<[f64; D]> {
-        let hybrid = self.hybrid.as_ref();
         self.terms()
             .iter()
             .enumerate()
-            .map(|(i, t)| hybrid.and_then(|h| h.wls_force_of(i)).unwrap_or(t.force))
+            .map(|(i, t)| self.wls_force_of(i).unwrap_or(t.force))
             .collect()
+    }
+
+    /// Node i's force from a WLS row (the hybrid's Ω_w, or an active node of a WLS coarse
+    /// level) from the last force pass; `None` where the bond loop's terms hold it.
+    fn wls_force_of(&self, i: usize) -> Option<[f64; D]> {
+        let coarse = self.coarse_wls.as_ref().zip(self.multigrid.as_ref());
+        wls_force_of(self.hybrid.as_ref(), coarse, i)
+    }
+
+    /// Whether node i's force comes from a WLS row (its bond-loop terms are not kept).
+    fn runs_wls(&self, i: usize) -> bool {
+        match (&self.hybrid, &self.multigrid) {
+            (Some(h), _) => h.mask()[i] == SchemeClass::Wls,
+            (None, Some(g)) => self.coarse_wls.is_some() && i < g.coarse_count,
+            (None, None) => false,
+        }
     }
 
     /// Recomputes forces after positions were set by hand (tests, restarts); on a multi-grid
@@ -663,7 +743,7 @@ impl<const D: usize> DynamicSimulation<D> {
         let reference = nodes.base.reference();
         let (positions, velocities) = nodes.fields.pair_mut(c.position, c.velocity);
         g.transfer(reference, positions, velocities);
-        let critical = g.critical_bonds(positions, families, self.law.critical_stretch);
+        let critical = g.critical_bonds(reference, positions, families, self.law.critical_stretch);
         if !critical.is_empty() {
             g.refine(
                 step, time, &critical, families, reference, positions, velocities,
@@ -697,17 +777,24 @@ impl<const D: usize> DynamicSimulation<D> {
         scalars: &mut Vec<(String, f64)>,
     ) {
         let reference = self.reference();
+        let cell_of = |i: usize| match &self.multigrid {
+            Some(g) if i < g.coarse_count => g.coarse.spacing,
+            Some(g) => g.fine.spacing,
+            None => self.scene.spacing,
+        };
         for c in &self.scene.energy_circles {
-            let r2 = c.radius * c.radius;
+            // ∫ over the circle of the energy density: each node's energy weighted by the
+            // fraction of its cell inside (node centres alone sample the circle's area to
+            // ≈ 1 % on a 15-cell radius, differently on each level).
             let energy: f64 = (0..reference.len())
                 .into_par_iter()
-                .filter(|&i| {
-                    (0..D)
-                        .map(|k| (reference[i][k] - c.center[k]).powi(2))
-                        .sum::<f64>()
-                        <= r2
+                .map(|i| {
+                    let e = node_energy[i];
+                    if e == 0.0 {
+                        return 0.0;
+                    }
+                    e * metrics::ball_fraction(&reference[i], cell_of(i), &c.center, c.radius)
                 })
-                .map(|i| node_energy[i])
                 .sum();
             scalars.push((format!("energy/circle/{}", c.name), energy));
         }
@@ -755,6 +842,21 @@ impl<const D: usize> DynamicSimulation<D> {
             })
             .collect()
     }
+}
+
+/// Node i's force from a WLS row, if it has one: the hybrid's Ω_w, or an active node of a WLS
+/// coarse level (the force of the last pass).
+#[inline]
+fn wls_force_of<const D: usize>(
+    hybrid: Option<&Hybrid<D>>,
+    coarse: Option<(&WlsRows<D>, &MultiAdaptive<D>)>,
+    i: usize,
+) -> Option<[f64; D]> {
+    if let Some(h) = hybrid {
+        return h.wls_force_of(i);
+    }
+    let (w, g) = coarse?;
+    (i < g.coarse_count && g.class[i].is_active()).then(|| w.force_of(i))
 }
 
 /// Held velocities, held displacements and body forces of the scene's layers (`layers`: the
@@ -860,14 +962,17 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         // W_i from the last force evaluation, at the current positions. An Ω_w node's WLS
         // force has no local energy density (−½ u_i·f_i sums to the energy only over a whole
         // WLS body): its PMB bond energy over its family is evaluated here, at frame time.
-        let mask = self.hybrid.as_ref().map(|h| h.mask());
         let terms = self.terms();
         let strain_energy: Vec<f64> = (0..mass_volumes.len())
             .into_par_iter()
             .map(|i| {
-                let w = match mask {
-                    Some(m) if m[i] == SchemeClass::Wls => self.energy_density(i),
-                    _ => terms[i].energy_density,
+                if mass_volumes[i] == 0.0 {
+                    return 0.0;
+                }
+                let w = if self.runs_wls(i) {
+                    self.energy_density(i)
+                } else {
+                    terms[i].energy_density
                 };
                 w * mass_volumes[i]
             })

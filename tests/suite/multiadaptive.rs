@@ -79,10 +79,10 @@ fn at(samples: &[Sample], name: &str, t: f64) -> f64 {
     a.get(name).unwrap() * (1.0 - w) + b.get(name).unwrap() * w
 }
 
-/// Runs the multi-adaptive variant against its uniform fine and coarse references and
-/// asserts what the thesis's §3.5.1 shows (see the module comment); prints every figure.
-fn compare(multi_variant: &str, fine_variant: &str, coarse_variant: &str, strict: bool) {
-    let mut multi = DynamicSimulation::<2>::new(&scene(multi_variant)).unwrap();
+/// Runs a multi-adaptive variant and asserts what holds for it alone (the fine level follows
+/// the cracks, no coarse bond breaks, roles and tiling exact); returns its frames.
+fn multi_adaptive_run(variant: &str) -> Vec<Sample> {
+    let mut multi = DynamicSimulation::<2>::new(&scene(variant)).unwrap();
     let body = |sim: &DynamicSimulation<2>| -> f64 {
         let g = sim.multigrid.as_ref().unwrap();
         g.active_volumes(sim.volumes()).iter().sum()
@@ -97,7 +97,7 @@ fn compare(multi_variant: &str, fine_variant: &str, coarse_variant: &str, strict
     let coarse_broken = series(&run, "grid/coarse_broken");
     let last = run.len() - 1;
     eprintln!(
-        "{multi_variant}: fine active {} → {}, coarse active {} → {}, {} frames",
+        "{variant}: fine active {} → {}, coarse active {} → {}, {} frames",
         fine_active[0],
         fine_active[last],
         coarse_active[0],
@@ -122,68 +122,94 @@ fn compare(multi_variant: &str, fine_variant: &str, coarse_variant: &str, strict
     // round-off of a sum of n terms, n ε).
     let n = multi.volumes().len() as f64;
     assert!(tiling < n * f64::EPSILON, "{tiling:e}");
+    run
+}
 
+/// Runs the multi-adaptive variants against their uniform fine and coarse references and
+/// asserts what the thesis's §3.5.1 shows (see the module comment); prints every figure.
+fn compare(multi_variants: &[&str], fine_variant: &str, coarse_variant: &str, strict: bool) {
     let fine = samples(sim::build(&scene(fine_variant)).unwrap().as_mut());
     let coarse = samples(sim::build(&scene(coarse_variant)).unwrap().as_mut());
-    for name in ["upper", "lower"] {
-        let (m, f, c) = (
-            last_angle(&run, name),
-            last_angle(&fine, name),
-            last_angle(&coarse, name),
-        );
-        eprintln!(
-            "{name} crack angle: multi-adaptive {m:.2}°, uniform fine {f:.2}°, uniform coarse {c:.2}°"
-        );
-        assert!((m - f).abs() <= 3.0, "{name}: {m} vs {f}");
-    }
-    // The energy in the 10 mm circle at the upper tip within 5 % of the uniform fine run's
-    // peak at every frame (each run has its own step: the fine series is interpolated).
     let energy = "energy/circle/upper_tip";
     let peak = series(&fine, energy).into_iter().fold(0.0, f64::max);
+    // The largest difference from the uniform fine run's tip-circle energy, relative to its
+    // peak, and when (each run has its own step: the fine series is interpolated).
     let worst = |samples: &[Sample]| {
         samples
             .iter()
-            .map(|s| (s.get(energy).unwrap() - at(&fine, energy, s.time)).abs() / peak)
-            .fold(0.0, f64::max)
+            .map(|s| {
+                let d = (s.get(energy).unwrap() - at(&fine, energy, s.time)).abs() / peak;
+                (d, s.time)
+            })
+            .fold((0.0, 0.0), |a, b| if b.0 > a.0 { b } else { a })
     };
-    let (worst_multi, worst_coarse) = (worst(&run), worst(&coarse));
-    eprintln!(
-        "energy in the tip circle: largest difference from uniform fine {:.2} % of its peak \
-         ({peak:.4e} J/m); uniform coarse {:.2} %",
-        100.0 * worst_multi,
-        100.0 * worst_coarse
-    );
-    // The issue's target is 5 % of the peak (the scaled test asserts it); the adaptive run
-    // must at least be closer to the uniform fine run than the uniform coarse run is.
-    assert!(
-        worst_multi < worst_coarse,
-        "{worst_multi} vs {worst_coarse}"
-    );
-    if strict {
-        assert!(worst_multi <= 0.05, "{worst_multi}");
-    }
-    // The secondary crack on the far edge (the thesis's Fig. 3.33), reported for all three.
+    let worst_coarse = worst(&coarse);
     let far = "damage/count/far_edge";
     eprintln!(
-        "damaged nodes near the far edge: multi-adaptive {}, uniform fine {}, uniform coarse {}",
-        run[last].get(far).unwrap(),
+        "uniform fine: tip-circle energy peak {peak:.4e} J/m; uniform coarse differs by up to \
+         {:.2} % of it (at {:.1} µs); damaged nodes near the far edge: fine {}, coarse {}",
+        100.0 * worst_coarse.0,
+        1e6 * worst_coarse.1,
         fine[fine.len() - 1].get(far).unwrap(),
         coarse[coarse.len() - 1].get(far).unwrap()
     );
+    let mut over = Vec::new();
+    for variant in multi_variants {
+        let run = multi_adaptive_run(variant);
+        for name in ["upper", "lower"] {
+            let (m, f, c) = (
+                last_angle(&run, name),
+                last_angle(&fine, name),
+                last_angle(&coarse, name),
+            );
+            eprintln!(
+                "{variant}: {name} crack angle {m:.2}°, uniform fine {f:.2}°, uniform coarse {c:.2}°"
+            );
+            assert!((m - f).abs() <= 3.0, "{variant} {name}: {m} vs {f}");
+        }
+        // The energy in the 10 mm circle at the upper tip within 5 % of the uniform fine
+        // run's peak at every frame.
+        let worst_multi = worst(&run);
+        eprintln!(
+            "{variant}: tip-circle energy within {:.2} % of the fine peak (worst at {:.1} µs); \
+             damaged nodes near the far edge {}",
+            100.0 * worst_multi.0,
+            1e6 * worst_multi.1,
+            run[run.len() - 1].get(far).unwrap()
+        );
+        // The issue's target is 5 % of the peak (the scaled test asserts it); the adaptive
+        // run must at least be closer to the uniform fine run than the uniform coarse run is.
+        assert!(
+            worst_multi.0 < worst_coarse.0,
+            "{variant}: {worst_multi:?} vs {worst_coarse:?}"
+        );
+        if strict && worst_multi.0 > 0.05 {
+            over.push(format!("{variant}: {worst_multi:?}"));
+        }
+    }
+    assert!(
+        over.is_empty(),
+        "tip-circle energy beyond 5 % of the peak: {over:?}"
+    );
 }
 
 #[test]
-fn small_multi_adaptive_run_follows_the_crack_and_matches_the_uniform_fine_run() {
-    compare("small", "small-fine", "small-coarse", false);
+fn small_multi_adaptive_runs_follow_the_crack_and_match_the_uniform_fine_run() {
+    compare(
+        &["small", "small-hybrid"],
+        "small-fine",
+        "small-coarse",
+        false,
+    );
 }
 
-/// The scaled run of the preset (Δx⁺ = 2/3 mm, Δx⁻ = 1/3 mm), with the issue's 5 % bound on the
-/// tip-circle energy: about 90 s for the three runs on 2 cores;
+/// The scaled runs of the preset (Δx⁺ = 2/3 mm, Δx⁻ = 1/3 mm), with the issue's 5 % bound on the
+/// tip-circle energy: about 2 minutes for the four runs on 2 cores;
 /// `cargo test --release -- --ignored scaled`.
 #[test]
-#[ignore = "90 s, and fails today: the tip-circle energy is 6.7 % of the peak off (issue 16 open)"]
-fn scaled_multi_adaptive_run_follows_the_crack_and_matches_the_uniform_fine_run() {
-    compare("", "fine", "coarse", true);
+#[ignore = "2 min, and fails today: tip-circle energy 6.3 % (standard) and 17.1 % (hybrid) of the peak off (issue 16 open)"]
+fn scaled_multi_adaptive_runs_follow_the_crack_and_match_the_uniform_fine_run() {
+    compare(&["", "hybrid"], "fine", "coarse", true);
 }
 
 /// A plate 40 mm square, δ = 4 mm, its fine level in a band of 2δ along the edges: under a

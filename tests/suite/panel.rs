@@ -35,6 +35,8 @@ fn model() -> Model {
             dx: 1e-3,
             scheme: "standard".into(),
             ratio: None,
+            region: None,
+            band: None,
         },
         peridyn::scene::DEFAULT_CHI,
     );

@@ -1,0 +1,110 @@
+//! The exact bond-stretch check shared by the switching rules of the hybrid (§3.3) and
+//! multi-adaptive (§3.5) schemes: criterion (3.80) as f l² − r² ≤ 0 on squared lengths, and
+//! the least margin over a node's bonds in SIMD lanes.
+
+use crate::discretization::Families;
+
+/// The bond data a check reads, and whether the CPU runs its lanes 4-wide.
+pub struct BondView<'a, const D: usize> {
+    reference: &'a [[f64; D]],
+    positions: &'a [[f64; D]],
+    pub families: &'a Families,
+    #[cfg(target_arch = "x86_64")]
+    avx2: bool,
+}
+
+impl<'a, const D: usize> BondView<'a, D> {
+    pub fn new(
+        reference: &'a [[f64; D]],
+        positions: &'a [[f64; D]],
+        families: &'a Families,
+    ) -> Self {
+        BondView {
+            reference,
+            positions,
+            families,
+            #[cfg(target_arch = "x86_64")]
+            avx2: std::arch::is_x86_feature_detected!("avx2"),
+        }
+    }
+
+    /// The least g(r², l²) over bonds (i, j), j in `neighbors`.
+    #[inline(always)]
+    pub fn least(&self, i: usize, neighbors: &[u32], g: impl Fn(f64, f64) -> f64) -> f64 {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU supports AVX2 (detected in `new`).
+            return unsafe { least_avx2(i, neighbors, self.reference, self.positions, g) };
+        }
+        least_portable(i, neighbors, self.reference, self.positions, g)
+    }
+}
+
+/// `least_portable` compiled for AVX2 (4-wide lanes, no FMA: bit-identical results).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2")]
+fn least_avx2<const D: usize>(
+    i: usize,
+    neighbors: &[u32],
+    reference: &[[f64; D]],
+    positions: &[[f64; D]],
+    g: impl Fn(f64, f64) -> f64,
+) -> f64 {
+    least_portable(i, neighbors, reference, positions, g)
+}
+
+/// Minimum of g over the bonds in `LANES` independent lanes (a min reduction does not
+/// vectorize otherwise); NaN values are ignored, as by `f64::min`.
+#[inline(always)]
+fn least_portable<const D: usize>(
+    i: usize,
+    neighbors: &[u32],
+    reference: &[[f64; D]],
+    positions: &[[f64; D]],
+    g: impl Fn(f64, f64) -> f64,
+) -> f64 {
+    const LANES: usize = 4;
+    let mut lanes = [f64::INFINITY; LANES];
+    let chunks = neighbors.chunks_exact(LANES);
+    for &j in chunks.remainder() {
+        let (r2, l2) = bond_squares(i, j as usize, reference, positions);
+        lanes[0] = lesser(lanes[0], g(r2, l2));
+    }
+    for chunk in chunks {
+        for t in 0..LANES {
+            let (r2, l2) = bond_squares(i, chunk[t] as usize, reference, positions);
+            lanes[t] = lesser(lanes[t], g(r2, l2));
+        }
+    }
+    lanes.into_iter().fold(f64::INFINITY, lesser)
+}
+
+/// min(a, v) for a non-NaN a, ignoring a NaN v; branch-free (a SIMD min).
+#[inline(always)]
+fn lesser(a: f64, v: f64) -> f64 {
+    if v < a { v } else { a }
+}
+
+/// The bond criterion (3.80) for every check path: a bond is critical when f l² − r² ≤ 0,
+/// i.e. r² ≥ (1 + χ s0)² l² (the rounded difference has the exact difference's sign).
+#[inline(always)]
+pub fn critical_margin(factor: f64, r2: f64, l2: f64) -> f64 {
+    factor * l2 - r2
+}
+
+/// Squared current and reference lengths of bond (i, j).
+#[inline(always)]
+pub fn bond_squares<const D: usize>(
+    i: usize,
+    j: usize,
+    reference: &[[f64; D]],
+    positions: &[[f64; D]],
+) -> (f64, f64) {
+    (0..D).fold((0.0, 0.0), |(r2, l2), k| {
+        let (dy, dx) = (
+            positions[j][k] - positions[i][k],
+            reference[j][k] - reference[i][k],
+        );
+        (r2 + dy * dy, l2 + dx * dx)
+    })
+}
