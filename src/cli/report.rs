@@ -98,6 +98,16 @@ pub fn print_summary(s: &RunSummary) {
     } else {
         println!("broken bonds: {}", s.broken_bonds);
     }
+    if let (Some(coarse), Some(fine), Some(fictitious)) = (
+        last("grid/coarse_active"),
+        last("grid/fine_active"),
+        last("grid/fictitious"),
+    ) {
+        println!(
+            "grid levels at the end: {coarse} coarse active, {fine} fine active, {fictitious} \
+             fictitious nodes"
+        );
+    }
     if let Some(f) = &s.last_frame {
         for key in ["energy/kinetic", "energy/strain", "energy/total"] {
             if let Some(v) = f.scalar(key) {

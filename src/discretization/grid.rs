@@ -15,7 +15,23 @@ impl<const D: usize> Lattice<D> {
     /// inside the solid; then each component is offset by a uniform random value in
     /// [lo, hi]·dx with `perturbation = [lo, hi]` (deterministic in `seed`).
     pub fn build(solid: &Solid, dx: f64, perturbation: [f64; 2], seed: u64) -> Self {
-        let (lo, hi) = solid.bounds();
+        Self::build_anchored(solid, dx, None, perturbation, seed)
+    }
+
+    /// [`Self::build`] with the nodes at origin + k·Δx (k integer) when an origin is given.
+    pub fn build_anchored(
+        solid: &Solid,
+        dx: f64,
+        origin: Option<&[f64]>,
+        perturbation: [f64; 2],
+        seed: u64,
+    ) -> Self {
+        let (mut lo, hi) = solid.bounds();
+        if let Some(o) = origin {
+            for (l, o) in lo.iter_mut().zip(o) {
+                *l = o + ((*l - o) / dx - 1e-9).ceil() * dx;
+            }
+        }
         let counts: Vec<usize> = (0..D)
             .map(|a| ((hi[a] - lo[a]) / dx + 1e-9).floor() as usize + 1)
             .collect();
@@ -58,7 +74,13 @@ impl<const D: usize> Lattice<D> {
 
     /// The scene's lattice; an error if the body holds no node.
     pub fn of_scene(scene: &Scene) -> Result<Self, SceneError> {
-        let lattice = Lattice::build(&scene.solid, scene.spacing, scene.perturbation, scene.seed);
+        let lattice = Lattice::build_anchored(
+            &scene.solid,
+            scene.spacing,
+            scene.origin.as_deref(),
+            scene.perturbation,
+            scene.seed,
+        );
         if lattice.is_empty() {
             return Err(scene.error(
                 "geometry",

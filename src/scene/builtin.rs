@@ -25,6 +25,7 @@ const PRESETS: &[(&str, &str)] = &[
         "pmb-block-3d",
         include_str!("../../presets/pmb-block-3d.toml"),
     ),
+    ("screw-3d", include_str!("../../presets/screw-3d.toml")),
     (
         "static-1d-manufactured",
         include_str!("../../presets/static-1d-manufactured.toml"),

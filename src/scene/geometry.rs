@@ -1,4 +1,5 @@
-//! Solid geometry of a scene: boxes, discs/spheres, cylinders and their unions and differences.
+//! Solid geometry of a scene: boxes, discs/spheres, cylinders, threaded rods and their unions
+//! and differences.
 //! Coordinates are SI lengths; a shape is evaluated by point membership only.
 
 use serde::Deserialize;
@@ -29,6 +30,17 @@ pub enum Shape {
         radius: Quantity,
         length: Quantity,
     },
+    /// 3D threaded rod (a screw's shank) from `base` along `axis` over `length`: a single
+    /// right-hand helical thread of `pitch` with a triangular profile, from `core_radius` at its
+    /// root to `radius` at its crest.
+    Thread {
+        base: Point,
+        axis: Point,
+        radius: Quantity,
+        core_radius: Quantity,
+        pitch: Quantity,
+        length: Quantity,
+    },
     Union(Vec<Shape>),
     Difference {
         base: std::boxed::Box<Shape>,
@@ -51,6 +63,17 @@ pub enum Solid {
         base: Vec<f64>,
         unit_axis: Vec<f64>,
         radius: f64,
+        length: f64,
+    },
+    Thread {
+        base: Vec<f64>,
+        /// The axis and two unit vectors across it (the angle of the helix is measured from
+        /// `across[0]` towards `across[1]`).
+        unit_axis: [f64; 3],
+        across: [[f64; 3]; 2],
+        radius: f64,
+        core_radius: f64,
+        pitch: f64,
         length: f64,
     },
     Union(Vec<Solid>),
@@ -113,6 +136,44 @@ impl Shape {
                     length: positive(*length, "length")?,
                 }
             }
+            Shape::Thread {
+                base,
+                axis,
+                radius,
+                core_radius,
+                pitch,
+                length,
+            } => {
+                if dim != 3 {
+                    return Err(format!(
+                        "{path}: a thread is a 3D shape, the scene is {dim}D"
+                    ));
+                }
+                let a = point(axis, "axis")?;
+                let norm = a.iter().map(|v| v * v).sum::<f64>().sqrt();
+                if norm == 0.0 {
+                    return Err(format!("{path}.axis: must not be zero"));
+                }
+                let unit_axis = [a[0] / norm, a[1] / norm, a[2] / norm];
+                let (radius, core_radius) = (
+                    positive(*radius, "radius")?,
+                    positive(*core_radius, "core_radius")?,
+                );
+                if core_radius >= radius {
+                    return Err(format!(
+                        "{path}.core_radius: must be below radius ({core_radius} ≥ {radius})"
+                    ));
+                }
+                Solid::Thread {
+                    base: point(base, "base")?,
+                    unit_axis,
+                    across: across(unit_axis),
+                    radius,
+                    core_radius,
+                    pitch: positive(*pitch, "pitch")?,
+                    length: positive(*length, "length")?,
+                }
+            }
             Shape::Union(parts) => Solid::Union(
                 parts
                     .iter()
@@ -152,6 +213,25 @@ impl Solid {
                 let radial2 = rel.iter().map(|v| v * v).sum::<f64>() - along * along;
                 along >= -eps && along <= length + eps && radial2 <= (radius + eps) * (radius + eps)
             }
+            Solid::Thread {
+                base,
+                unit_axis,
+                across,
+                radius,
+                core_radius,
+                pitch,
+                length,
+            } => {
+                let rel: [f64; 3] = std::array::from_fn(|k| x[k] - base[k]);
+                let dot = |u: &[f64; 3]| rel[0] * u[0] + rel[1] * u[1] + rel[2] * u[2];
+                let (along, p, q) = (dot(unit_axis), dot(&across[0]), dot(&across[1]));
+                // The helix phase: 0 at the thread's root, ½ at its crest.
+                let turn = q.atan2(p) / std::f64::consts::TAU;
+                let phase = (along / pitch - turn).rem_euclid(1.0);
+                let crest = 1.0 - (2.0 * phase - 1.0).abs();
+                let r = core_radius + (radius - core_radius) * crest + eps;
+                along >= -eps && along <= length + eps && p * p + q * q <= r * r
+            }
             Solid::Union(parts) => parts.iter().any(|s| s.contains(x, eps)),
             Solid::Difference { base, minus } => {
                 base.contains(x, eps) && !minus.iter().any(|s| s.contains(x, -eps))
@@ -189,6 +269,19 @@ impl Solid {
                         .collect(),
                 )
             }
+            Solid::Thread {
+                base,
+                unit_axis,
+                radius,
+                length,
+                ..
+            } => Solid::Cylinder {
+                base: base.clone(),
+                unit_axis: unit_axis.to_vec(),
+                radius: *radius,
+                length: *length,
+            }
+            .bounds(),
             Solid::Union(parts) => {
                 let mut it = parts.iter().map(Solid::bounds);
                 let first = it.next().unwrap_or_default();
@@ -202,6 +295,27 @@ impl Solid {
             Solid::Difference { base, .. } => base.bounds(),
         }
     }
+}
+
+/// Two unit vectors that complete `axis` (a unit vector) to a right-handed orthonormal frame.
+fn across(axis: [f64; 3]) -> [[f64; 3]; 2] {
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    // The coordinate axis least aligned with `axis` keeps the cross product well conditioned.
+    let k = (0..3)
+        .min_by(|&i, &j| axis[i].abs().total_cmp(&axis[j].abs()))
+        .unwrap_or(0);
+    let mut e = [0.0; 3];
+    e[k] = 1.0;
+    let u = cross(axis, e);
+    let n = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+    let u = u.map(|v| v / n);
+    [u, cross(axis, u)]
 }
 
 fn dist2(a: &[f64], b: &[f64]) -> f64 {
@@ -247,6 +361,62 @@ mod tests {
         let (lo, hi) = cyl.bounds();
         assert_eq!(lo, vec![-0.5, -0.5, -0.5]);
         assert_eq!(hi, vec![0.5, 0.5, 1.5]);
+    }
+
+    #[test]
+    fn a_thread_has_its_crest_and_root_on_the_helix() {
+        let (pitch, core, major) = (0.4, 0.8, 1.0);
+        let thread = Shape::Thread {
+            base: q(&[0.0, 0.0, 0.0]),
+            axis: q(&[0.0, 0.0, 1.0]),
+            radius: Quantity(major),
+            core_radius: Quantity(core),
+            pitch: Quantity(pitch),
+            length: Quantity(4.0),
+        }
+        .to_solid(3, "g")
+        .unwrap();
+        let Solid::Thread { across, .. } = &thread else {
+            unreachable!()
+        };
+        // Along the direction across[0] (angle 0) the crest lies at z = pitch/2 (+ k pitch),
+        // the root at z = 0; a quarter turn further both rise by pitch/4.
+        let at = |angle: f64, r: f64, z: f64| {
+            let (c, s) = (angle.cos(), angle.sin());
+            let p: [f64; 3] = std::array::from_fn(|k| r * (c * across[0][k] + s * across[1][k]));
+            thread.contains(&[p[0], p[1], z], 0.0)
+        };
+        for k in 0..9 {
+            let z = k as f64 * pitch;
+            assert!(at(0.0, 0.99 * major, z + 0.5 * pitch), "crest at {z}");
+            assert!(!at(0.0, 0.99 * major, z + 0.05), "root side at {z}");
+            assert!(at(0.0, 0.99 * core, z + 0.05), "core at {z}");
+            let quarter = std::f64::consts::FRAC_PI_2;
+            assert!(
+                at(quarter, 0.99 * major, z + 0.75 * pitch),
+                "quarter turn at {z}"
+            );
+            assert!(!at(quarter, 0.99 * major, z + 0.5 * pitch));
+        }
+        assert!(!at(0.0, 0.5, 4.1) && !at(0.0, 0.5, -0.1));
+        // The mean radius² over the profile: the thread's volume is π L (r_c² + r_c Δ + Δ²/3)
+        // with Δ = r − r_c (exact for a triangular profile swept around the axis).
+        let n = 200;
+        let h = 2.4 / n as f64;
+        let mut inside = 0usize;
+        for i in 0..n {
+            for j in 0..n {
+                for k in 0..n {
+                    let x = [-1.2 + (i as f64 + 0.5) * h, -1.2 + (j as f64 + 0.5) * h];
+                    let z = 0.0 + (k as f64 + 0.5) * (4.0 / n as f64);
+                    inside += usize::from(thread.contains(&[x[0], x[1], z], 0.0));
+                }
+            }
+        }
+        let volume = inside as f64 * h * h * 4.0 / n as f64;
+        let d = major - core;
+        let exact = std::f64::consts::PI * 4.0 * (core * core + core * d + d * d / 3.0);
+        assert!((volume / exact - 1.0).abs() < 5e-3, "{volume} vs {exact}");
     }
 
     #[test]

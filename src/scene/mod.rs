@@ -37,6 +37,8 @@ pub struct Scene {
     pub horizon: f64,
     /// Node offsets per component, uniform in [lo, hi]·Δx.
     pub perturbation: [f64; 2],
+    /// A lattice anchor: nodes at origin + k·Δx (None: from the body's lower bounds).
+    pub origin: Option<Vec<f64>>,
     pub seed: u64,
     pub family_radius: FamilyRadius,
     pub volume_correction: bool,

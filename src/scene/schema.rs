@@ -59,6 +59,11 @@ pub struct Discretization {
     /// ±0.2 Δx, `[0.0, 0.35]` uniform in [0, 0.35 Δx] (the thesis's perturbed grid).
     #[serde(default)]
     pub perturbation: Perturbation,
+    /// Anchors the lattice: nodes at origin + k·Δx (default: the body's lower bounds), so
+    /// that two scenes can share their nodes (a uniform reference on a multi-grid scene's
+    /// fine level).
+    #[serde(default)]
+    pub origin: Option<Point>,
     #[serde(default = "default_seed")]
     pub seed: u64,
     #[serde(default)]

@@ -70,6 +70,16 @@ pub(super) fn validate(
             ),
         ));
     }
+    let origin = match &d.origin {
+        None => None,
+        Some(o) if o.len() == dim => Some(si(o)),
+        Some(o) => {
+            return Err(ctx.error(
+                "discretization.origin",
+                format!("has {} components, the scene is {dim}-dimensional", o.len()),
+            ));
+        }
+    };
     let physics = p.physics;
     let scheme = scheme(p, ctx, dim)?;
     let boundary = p
@@ -318,6 +328,7 @@ pub(super) fn validate(
         spacing,
         horizon,
         perturbation,
+        origin,
         physics,
         scheme,
         reference,

@@ -20,5 +20,6 @@ mod multigrid;
 mod operators;
 mod panel;
 mod remote;
+mod screw;
 mod static_1d_manufactured;
 mod wls_elasticity;
