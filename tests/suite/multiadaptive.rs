@@ -303,17 +303,18 @@ fn patch_tests_across_the_level_interface() {
     assert!(fine < coarse, "{fine:e} vs {coarse:e}");
 }
 
-/// A recording of the small run read back: the `nodes/grid` classes of the last frame match
-/// the logged counts, inactive nodes are not drawn, and point counts change between frames.
+/// A recording of the scaled run (the preset's base, ≈ 20 s) read back: the `nodes/grid`
+/// classes of the last frame match the logged counts, inactive nodes are not drawn, and point
+/// counts change between frames.
 #[test]
 fn the_recording_shows_the_fine_level_following_the_crack() {
     use peridyn::adapt::masks::GridClass;
     use peridyn::readback;
     let dir = std::env::temp_dir().join(format!("peridyn-multiadaptive-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("kw-multigrid-small.rrd");
+    let path = dir.join("kw-multigrid-scaled.rrd");
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_peridyn"))
-        .args(["record", PRESET, "--variant", "small", "-q", "-o"])
+        .args(["record", PRESET, "-q", "-o"])
         .arg(&path)
         .output()
         .unwrap();
