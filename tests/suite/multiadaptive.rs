@@ -14,10 +14,14 @@ const PRESET: &str = "kalthoff-winkler-multigrid";
 
 /// The preset's scene ("" for its base, the scaled run), a frame every other step (the
 /// series of runs with different steps are compared by interpolating in time: a dense
-/// cadence keeps that interpolation out of the comparison).
+/// cadence keeps that interpolation out of the comparison). `variant|key=value|…` adds
+/// overrides.
 fn scene(variant: &str) -> Scene {
-    let dense = ["output.every=2".to_string()];
-    Scene::load_with(PRESET, (!variant.is_empty()).then_some(variant), &dense).unwrap()
+    let mut parts = variant.split('|');
+    let name = parts.next().unwrap_or_default();
+    let mut set = vec!["output.every=2".to_string()];
+    set.extend(parts.map(str::to_string));
+    Scene::load_with(PRESET, (!name.is_empty()).then_some(name), &set).unwrap()
 }
 
 /// One frame's time and scalars.
@@ -355,4 +359,14 @@ fn the_recording_shows_the_fine_level_following_the_crack() {
         "switch events logged"
     );
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The scaled run with the initial fine band twice the thesis's (`wide-band`, 2 δ) meets the
+/// issue's 5 % bound on the tip-circle energy (measured 3.74 %); with χ = 0.8 instead of 0.95
+/// (a measurement for planning) it does not (5.38 %), which the second run reports only.
+#[test]
+#[ignore = "3 min: the scaled runs with a wider band and a lower χ (issue 16)"]
+fn scaled_wide_band_run_meets_the_energy_bound() {
+    compare(&["wide-band"], "fine", "coarse", true);
+    compare(&["|multigrid.chi=0.8"], "fine", "coarse", false);
 }
