@@ -464,13 +464,11 @@ fn multigrid(
         CoarseKind::Standard => CoarseScheme::Standard,
         CoarseKind::Wls => {
             let default = if dim == 3 { 3 } else { 4 };
-            let k = m.collocation_factor.unwrap_or(default);
-            if !(1..=64).contains(&k) {
-                return Err(ctx.error(
-                    "multigrid.collocation_factor",
-                    format!("k_aux must be in 1..=64, got {k}"),
-                ));
-            }
+            let k = collocation_factor(
+                ctx,
+                "multigrid.collocation_factor",
+                m.collocation_factor.unwrap_or(default),
+            )?;
             CoarseScheme::Wls {
                 collocation_factor: k,
             }
@@ -502,6 +500,15 @@ fn length(
                 r.unit()
             ),
         )),
+    }
+}
+
+/// The WLS auxiliary-grid factor k_aux (spacing δ/k_aux), within 1..=64.
+fn collocation_factor(ctx: &ErrorContext, field: &str, k: usize) -> Result<usize, SceneError> {
+    if (1..=64).contains(&k) {
+        Ok(k)
+    } else {
+        Err(ctx.error(field, format!("k_aux must be in 1..=64, got {k}")))
     }
 }
 
@@ -631,13 +638,7 @@ fn scheme(p: &Preset, ctx: &ErrorContext, dim: usize) -> Result<SchemeSpec, Scen
         _ => None,
     };
     let collocation_factor = match (d.collocation_factor, default) {
-        (Some(k), _) if (1..=64).contains(&k) => k,
-        (Some(k), _) => {
-            return Err(ctx.error(
-                "discretization.collocation_factor",
-                format!("k_aux must be in 1..=64, got {k}"),
-            ));
-        }
+        (Some(k), _) => collocation_factor(ctx, "discretization.collocation_factor", k)?,
         (None, Some(k)) => k,
         (None, None) => {
             return Err(ctx.error(
@@ -682,13 +683,8 @@ fn hybrid(
     if h.check_every == 0 {
         return Err(ctx.error("hybrid.check_every", "must be ≥ 1 (steps between checks)"));
     }
-    if let Some(k) = h.collocation_factor
-        && !(1..=64).contains(&k)
-    {
-        return Err(ctx.error(
-            "hybrid.collocation_factor",
-            format!("k_aux must be in 1..=64, got {k}"),
-        ));
+    if let Some(k) = h.collocation_factor {
+        collocation_factor(ctx, "hybrid.collocation_factor", k)?;
     }
     Ok(Some(HybridSpec {
         adaptive: kind == SchemeKind::HybridAdaptive,
