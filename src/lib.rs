@@ -6,6 +6,7 @@
 //! sinks (`record` for Rerun) → `control`, `panel`, the CLI. The solver core knows nothing of
 //! Rerun or user interfaces. Papers are cited by the short ids of `REFERENCES.md`.
 
+pub mod absorb;
 pub mod adapt;
 pub mod bench;
 pub mod cli;

@@ -51,6 +51,16 @@ pub fn describe(scene: &Scene, info: &SimInfo, steps: Option<u64>) -> String {
             },
             info.frame_every
         ),
+        Physics::ScalarWave => format!(
+            "{name}: {}D scalar wave, {} nodes, {stencil}, Δt = {:.4e} s ({} × velocity-Verlet's \
+             bound {:.4e} s), {steps} steps, a frame every {}",
+            info.dim,
+            info.nodes,
+            info.dt,
+            ratio(info.dt / info.stable_dt),
+            info.stable_dt,
+            info.frame_every
+        ),
         Physics::Dynamics => format!(
             "{name}: {}D, {} nodes, {} directed bonds, Δt = {:.4e} s ({:.2}× the stable bound \
              {:.4e} s; (3.8) estimate {:.4e} s), {steps} steps, a frame every {}",

@@ -41,6 +41,10 @@ fn roles(scene: &Scene) -> Roles {
             plots.push(("error", "/metrics/error/**"));
             "concentration"
         }
+        Physics::ScalarWave => {
+            plots.push(("energy", "/metrics/energy/**"));
+            "displacement"
+        }
         Physics::Corrosion => {
             masks.push("phase");
             plots.push(("volume loss", "/metrics/corrosion/volume_loss"));
@@ -50,6 +54,12 @@ fn roles(scene: &Scene) -> Roles {
     if hybrid {
         masks.push("scheme");
         plots.push(("Ω_s fraction", "/metrics/hybrid/omega_s_fraction"));
+    }
+    if scene.absorbing.is_some() {
+        masks.push("boundary");
+        if scene.physics != Physics::ScalarWave {
+            plots.push(("near-field energy", "/metrics/energy/**"));
+        }
     }
     if scene.multigrid.is_some() {
         masks.push("grid");

@@ -239,6 +239,43 @@ impl Solid {
         }
     }
 
+    /// The distance of an inside point `x` to the truncation surface of an unbounded-domain
+    /// scene and the unit outward normal there: a sphere's radial direction, or for a box the
+    /// normalized sum of the outward normals of every face nearer than `width` (the bisector
+    /// near a corner; seed-thesis-ch4-5 §1.1 [ambiguity]). `None` for other shapes.
+    pub fn truncation(&self, x: &[f64], width: f64) -> Option<(f64, Vec<f64>)> {
+        match self {
+            Solid::Box { min, max } => {
+                let mut normal = vec![0.0; x.len()];
+                let mut distance = f64::INFINITY;
+                for (k, v) in x.iter().enumerate() {
+                    for (gap, sign) in [(v - min[k], -1.0), (max[k] - v, 1.0)] {
+                        distance = distance.min(gap);
+                        if gap < width {
+                            normal[k] += sign;
+                        }
+                    }
+                }
+                let n = normal.iter().map(|v| v * v).sum::<f64>().sqrt();
+                if n > 0.0 {
+                    normal.iter_mut().for_each(|v| *v /= n);
+                }
+                Some((distance, normal))
+            }
+            Solid::Sphere { center, radius } => {
+                let rel: Vec<f64> = x.iter().zip(center).map(|(a, b)| a - b).collect();
+                let r = rel.iter().map(|v| v * v).sum::<f64>().sqrt();
+                let normal = if r > 0.0 {
+                    rel.iter().map(|v| v / r).collect()
+                } else {
+                    vec![0.0; x.len()]
+                };
+                Some((radius - r, normal))
+            }
+            _ => None,
+        }
+    }
+
     /// Axis-aligned bounding box (min, max).
     pub fn bounds(&self) -> (Vec<f64>, Vec<f64>) {
         match self {

@@ -6,7 +6,9 @@ pub mod geometry;
 pub mod reference;
 pub mod schema;
 pub mod units;
+mod absorbing;
 mod validate;
+pub use absorbing::second_moment;
 
 use std::path::Path;
 
@@ -53,6 +55,12 @@ pub struct Scene {
     pub hybrid: Option<HybridSpec>,
     /// Multi-grid scenes only.
     pub multigrid: Option<MultigridSpec>,
+    /// Unbounded-domain scenes: the absorbing layer at the truncation.
+    pub absorbing: Option<AbsorbingSpec>,
+    /// Scalar-wave scenes: χ and the damping d (the kernel is in `diffusion`).
+    pub wave: Option<WaveSpec>,
+    /// Gaussian pulses added to the initial scalar field.
+    pub initial_pulses: Vec<Pulse>,
     pub precracks: Vec<CrackGeometry>,
     pub boundary: Vec<BoundarySpec>,
     pub initial_velocity: Vec<InitialVelocity>,
@@ -146,6 +154,84 @@ pub enum Refinement {
         chi: f64,
         transfer: Transfer,
     },
+}
+
+/// The scalar wave (2.37)–(2.40): ü = L u − 2 d u̇, L the PD operator with c_s calibrated to
+/// the local wave speed χ (thesis (4.47), (4.87)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WaveSpec {
+    /// χ (m/s).
+    pub speed: f64,
+    /// d (1/s).
+    pub damping: f64,
+}
+
+/// A Gaussian u0 = A exp(−a ‖x − x0‖²) added to the initial scalar field (thesis (4.96),
+/// (4.97); the diffusion pulse of §4.1.4).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pulse {
+    pub center: Vec<f64>,
+    pub amplitude: f64,
+    /// a (1/m²).
+    pub decay: f64,
+}
+
+impl Pulse {
+    pub fn value(&self, x: &[f64]) -> f64 {
+        let r2: f64 = x.iter().zip(&self.center).map(|(a, b)| (a - b) * (a - b)).sum();
+        self.amplitude * (-self.decay * r2).exp()
+    }
+}
+
+/// Which wave numbers the far-field modes take (seed-thesis-ch4-5 §3.2, erratum 6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WaveNumberSet {
+    /// Waves: k ∈ (0, Δk] (outgoing only; (4.154)); diffusion: k ∈ Δk·[−1, 0) (4.25).
+    #[default]
+    Positive,
+    /// Waves: k equally spaced in [−Δk, Δk] as printed in (4.56) (did not absorb in the note's
+    /// check; kept as an option).
+    Symmetric,
+}
+
+/// The frequencies of the far-field modes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Dispersion {
+    /// The near field's own lattice quadrature (4.85), (4.95) ("Proposed-A").
+    Discrete,
+    /// The local limit ω̃² = χ²k² − d² (4.39) or ω̄ = D k² (4.10) ("Proposed-B").
+    Local,
+}
+
+/// An absorbing layer at the truncation of an unbounded domain (thesis Chapter 4;
+/// seed-thesis-ch4-5 §1.3 for the knobs and their defaults).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AbsorbingSpec {
+    /// Nodes nearer the truncation than this are absorbing (m).
+    pub width: f64,
+    /// d∞, the cloud's radius (m).
+    pub cloud_radius: f64,
+    /// n_k per direction.
+    pub wave_numbers: usize,
+    /// n_φ.
+    pub directions: usize,
+    /// Δk (1/m).
+    pub max_wave_number: f64,
+    /// Δφ (rad): the waves' directions lie in θ_n + [−Δφ, Δφ]; also the backward cone's margin.
+    pub spread: f64,
+    pub wave_number_set: WaveNumberSet,
+    pub dispersion: Dispersion,
+    /// Relative SVD cut-off of the pseudo-inverse (seed-thesis-ch4-5 §3.7).
+    pub cutoff: f64,
+    /// Clouds only behind the node (backward cone (4.86)).
+    pub cone: bool,
+    /// ‖V‖_max and cond(M) limits: `check` flags nodes above them; with `thinning` their clouds
+    /// are thinned (density halved along the axes, Fig. 4.23) until they hold.
+    pub max_norm: f64,
+    pub max_condition: f64,
+    pub thinning: bool,
 }
 
 /// How fine nodes take their values from the coarse level in the multi-adaptive scheme.

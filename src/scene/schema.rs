@@ -40,6 +40,9 @@ pub struct Preset {
     pub hybrid: HybridTable,
     /// Multi-grid: a fine region refined `ratio` times (diffusion and corrosion scenes).
     pub multigrid: Option<MultigridTable>,
+    /// An absorbing layer at the truncation (unbounded domains, thesis Chapter 4).
+    #[serde(default)]
+    pub absorbing: Option<AbsorbingTable>,
     /// A manufactured solution: gives the body force or source, the values held in
     /// `hold_reference` layers, and the error norm (3.79) reported in frames.
     pub reference: Option<ReferenceSpec>,
@@ -203,6 +206,8 @@ pub enum Physics {
     /// Bi-material corrosion (2.48)–(2.49), (2.79): diffusion with bond classes by phase and
     /// an irreversible solid → liquid change below the saturation concentration.
     Corrosion,
+    /// The scalar wave (2.37)–(2.40) with damped velocity-Verlet (4.62).
+    ScalarWave,
 }
 
 /// Manufactured solutions of seed-004 Examples 1–2 (thesis §3.2.5–3.2.6).
@@ -356,6 +361,10 @@ pub struct Material {
     pub interface_diffusivity: Option<Quantity>,
     /// Corrosion: C_sat; a solid node whose concentration drops below it turns liquid.
     pub saturation: Option<Quantity>,
+    /// Scalar waves: χ (m/s).
+    pub wave_speed: Option<Quantity>,
+    /// Scalar waves: d (1/s).
+    pub damping: Option<Quantity>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -413,6 +422,47 @@ pub struct Initial {
     /// Diffusion and corrosion: concentration set in regions (later entries win; 0 elsewhere).
     #[serde(default)]
     pub concentration: Vec<ConcentrationRegion>,
+    /// Scalar fields: Gaussian pulses A exp(−a ‖x − x0‖²), summed.
+    #[serde(default)]
+    pub pulse: Vec<PulseTable>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PulseTable {
+    pub center: Point,
+    #[serde(default = "unit_quantity")]
+    pub amplitude: Quantity,
+    /// a (1/m²).
+    pub decay: Quantity,
+}
+
+fn unit_quantity() -> Quantity {
+    Quantity(1.0)
+}
+
+/// `[absorbing]`: the layer and the knobs of thesis §4.1.3, §4.2.3 (defaults per physics in
+/// `scene::absorbing`).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AbsorbingTable {
+    pub width: Option<Measure>,
+    pub cloud_radius: Option<Measure>,
+    pub wave_numbers: Option<usize>,
+    pub directions: Option<usize>,
+    /// Δk (1/m).
+    pub max_wave_number: Option<f64>,
+    /// Δφ (degrees).
+    pub spread_degrees: Option<f64>,
+    #[serde(default)]
+    pub wave_number_set: super::WaveNumberSet,
+    pub dispersion: Option<super::Dispersion>,
+    pub cutoff: Option<f64>,
+    pub cone: Option<bool>,
+    pub max_norm: Option<f64>,
+    pub max_condition: Option<f64>,
+    #[serde(default)]
+    pub thinning: bool,
 }
 
 #[derive(Debug, Clone, Deserialize)]

@@ -123,8 +123,14 @@ pub(super) fn validate(
         ));
     }
 
+    let mut wave = None;
     let (material, diffusion) = match physics {
         Physics::Diffusion | Physics::Corrosion => (None, Some(diffusion(p, ctx, physics)?)),
+        Physics::ScalarWave => {
+            let (w, kernel) = super::absorbing::wave(p, ctx, dim, horizon)?;
+            wave = Some(w);
+            (None, Some(kernel))
+        }
         Physics::Static if dim != 1 => {
             return Err(ctx.error(
                 "physics",
@@ -190,6 +196,34 @@ pub(super) fn validate(
         perturbation,
         [spacing, horizon],
     )?;
+    if physics == Physics::ScalarWave && (scheme.kind != SchemeKind::Standard || multigrid.is_some())
+    {
+        return Err(ctx.error(
+            "discretization.scheme",
+            "a scalar wave runs on the standard scheme, on one grid",
+        ));
+    }
+    let absorbing = p
+        .absorbing
+        .as_ref()
+        .map(|t| super::absorbing::absorbing(t, ctx, (dim, physics, &solid), spacing, horizon))
+        .transpose()?;
+    if absorbing.is_some() && (multigrid.is_some() || scheme.kind != SchemeKind::Standard) {
+        return Err(ctx.error(
+            "absorbing",
+            "an absorbing layer runs with the standard scheme on one grid (no multigrid, hybrid \
+             or WLS)",
+        ));
+    }
+    let initial_pulses = super::absorbing::pulses(p, ctx, dim)?;
+    if !initial_pulses.is_empty()
+        && !matches!(physics, Physics::Diffusion | Physics::Corrosion | Physics::ScalarWave)
+    {
+        return Err(ctx.error(
+            "initial.pulse",
+            "pulses set a scalar field: physics = \"diffusion\", \"corrosion\" or \"scalar-wave\"",
+        ));
+    }
     let reference = p
         .reference
         .as_ref()
@@ -335,6 +369,9 @@ pub(super) fn validate(
         diffusion,
         hybrid,
         multigrid,
+        absorbing,
+        wave,
+        initial_pulses,
         seed: d.seed,
         family_radius: d.family_radius,
         volume_correction: d.volume_correction,
@@ -447,7 +484,7 @@ fn multigrid(
                 transfer: m.transfer.unwrap_or_default(),
             }
         }
-        Physics::Static => {
+        Physics::Static | Physics::ScalarWave => {
             return Err(ctx.error(
                 "multigrid",
                 "two grid levels are available for dynamics, diffusion and corrosion",
@@ -482,7 +519,7 @@ fn multigrid(
 }
 
 /// A length given in SI units or relative to the horizon or spacing.
-fn length(
+pub(super) fn length(
     ctx: &ErrorContext,
     field: &str,
     m: Measure,
@@ -512,7 +549,7 @@ fn collocation_factor(ctx: &ErrorContext, field: &str, k: usize) -> Result<usize
     }
 }
 
-fn positive(ctx: &ErrorContext, field: &str, v: f64) -> Result<f64, SceneError> {
+pub(super) fn positive(ctx: &ErrorContext, field: &str, v: f64) -> Result<f64, SceneError> {
     if v > 0.0 && v.is_finite() {
         Ok(v)
     } else {
@@ -715,7 +752,7 @@ fn extend_for_outside_layers(solid: Solid, layers: &[BoundarySpec]) -> Result<So
     Ok(Solid::Box { min, max })
 }
 
-fn point(p: &Point, dim: usize, path: &str) -> Result<Vec<f64>, String> {
+pub(super) fn point(p: &Point, dim: usize, path: &str) -> Result<Vec<f64>, String> {
     if p.len() != dim {
         return Err(format!(
             "{path}: has {} components, the scene is {dim}-dimensional",

@@ -3,6 +3,7 @@
 //! (checked by `tests/architecture.rs`).
 
 pub mod dynamics;
+mod far_field;
 pub mod scalar;
 
 pub use dynamics::DynamicSimulation;

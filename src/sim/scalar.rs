@@ -8,6 +8,7 @@
 
 use rayon::prelude::*;
 
+use super::far_field::{self, Absorber, Wave};
 use crate::adapt::fixed::{self, FixedHybrid};
 use crate::adapt::masks::{GridClass, Phase, SchemeClass};
 use crate::adapt::multigrid::MultiGrid;
@@ -32,6 +33,8 @@ const STATIC_STAGES: &[&str] = &["solve"];
 /// Forward Euler's stages, in the order `step()` runs them (`hold`: held values and a
 /// multi-grid scene's fictitious values).
 const EULER_STAGES: &[&str] = &["rates", "update", "hold", "phase_change"];
+/// Damped velocity-Verlet's stages (scalar waves, (4.62)); `hold` as above.
+const VERLET_STAGES: &[&str] = &["rates", "update", "hold", "phase_change"];
 const RATES: usize = 0;
 const UPDATE: usize = 1;
 const HOLD: usize = 2;
@@ -66,6 +69,10 @@ pub struct ScalarSimulation<const D: usize> {
     hybrid: Option<FixedHybrid>,
     /// Multi-grid scenes: the levels' classes and the fictitious nodes' interpolation.
     multigrid: Option<MultiGrid<D>>,
+    /// Unbounded-domain scenes: the absorbing layer (thesis Chapter 4).
+    absorber: Option<Absorber<D>>,
+    /// Scalar-wave scenes: the velocity state of (4.62).
+    wave: Option<Wave>,
     /// Each node's volume where it is active (0 on fictitious nodes): Σ C V over these is the
     /// total.
     active_volumes: Vec<f64>,
@@ -158,7 +165,9 @@ fn initial_field<const D: usize>(
                 .rev()
                 .find(|(region, _)| region.contains(x, eps))
                 .map(|(_, v)| *v);
-            set.unwrap_or_else(|| scene.reference.map_or(0.0, |r| r.value(x, 0.0)))
+            let base =
+                set.unwrap_or_else(|| scene.reference.map_or(0.0, |r| r.value(x, 0.0)));
+            base + scene.initial_pulses.iter().map(|p| p.value(x)).sum::<f64>()
         })
         .collect();
     for (layer, nodes) in scene.boundary.iter().zip(layers) {
@@ -181,9 +190,16 @@ fn euler_stable_step(
     kappa_scale: f64,
     hybrid: Option<&FixedHybrid>,
 ) -> StableStep {
+    let wave = scene.physics == Physics::ScalarWave;
     let gershgorin = (kappa_scale * operator.max_absolute_row_sum())
         .max(hybrid.map_or(0.0, |h| h.wls.max_absolute_row_sum()));
-    let guaranteed = stability::euler_limit(gershgorin);
+    // A wave's ü = L u: velocity-Verlet's 2/√λ_max with λ_max the spectral radius of −L.
+    let (limit, step): (fn(f64) -> f64, fn(f64) -> f64) = if wave {
+        (stability::verlet_limit, stability::verlet_step)
+    } else {
+        (stability::euler_limit, stability::euler_step)
+    };
+    let guaranteed = limit(gershgorin);
     let sharp = match scene.time.step {
         StepSize::Absolute(dt) if dt <= guaranteed => guaranteed,
         _ => {
@@ -196,13 +212,17 @@ fn euler_stable_step(
                     }
                 }
             });
-            stability::euler_step(radius)
+            step(radius)
         }
     };
     StableStep {
         sharp,
         guaranteed,
-        integrator: Integrator::Euler,
+        integrator: if wave {
+            Integrator::Verlet
+        } else {
+            Integrator::Euler
+        },
     }
 }
 
@@ -226,6 +246,17 @@ impl<const D: usize> ScalarSimulation<D> {
                 nodes.iter().for_each(|&i| is_held[i as usize] = true);
             }
         }
+        // The absorbing layer's values are overwritten each step, never solved for.
+        let absorbing_nodes = Absorber::<D>::nodes(scene, discretization.nodes.reference());
+        if scene.absorbing.is_some() && absorbing_nodes.is_empty() {
+            return Err(scene.error(
+                "absorbing.width",
+                "the layer holds no node: widen it (e.g. width = \"1 horizon\")",
+            ));
+        }
+        absorbing_nodes
+            .iter()
+            .for_each(|(i, _)| is_held[*i as usize] = true);
         // Fictitious nodes of a multi-grid scene are neither solved nor held: interpolated.
         let active = |i: u32| {
             multigrid
@@ -328,6 +359,10 @@ impl<const D: usize> ScalarSimulation<D> {
             .max(field.iter().fold(0.0, |a: f64, v| a.max(v.abs())));
         let (stable, stage_names) = match scene.physics {
             Physics::Static => (StableStep::NONE, STATIC_STAGES),
+            Physics::ScalarWave => (
+                euler_stable_step(scene, n, &operator, 1.0, None),
+                VERLET_STAGES,
+            ),
             _ => {
                 // The unit operator times the largest bond κ bounds the corrosion operator's
                 // spectrum.
@@ -337,6 +372,14 @@ impl<const D: usize> ScalarSimulation<D> {
             }
         };
         let run = RunState::new(scene, stable, stage_names)?;
+        let absorber = scene.absorbing.map(|spec| {
+            let mut a = Absorber::new(scene, spec, absorbing_nodes, &kernel, n);
+            a.ensure_fitted(run.clock.dt(), positions, &discretization.families);
+            a
+        });
+        let wave = scene
+            .wave
+            .map(|w| Wave::new(w.damping, &field, operator.rows.len()));
         let nodes = &mut discretization.nodes;
         let field = nodes.fields.add_values("field", field);
         let corrosion = corrosion.map(|(law, change, phase)| Corrosion {
@@ -357,6 +400,8 @@ impl<const D: usize> ScalarSimulation<D> {
             corrosion,
             hybrid,
             multigrid,
+            absorber,
+            wave,
             active_volumes,
             run,
             amplitude,
@@ -388,6 +433,24 @@ impl<const D: usize> ScalarSimulation<D> {
             .fields
             .get_mut(self.field)
             .copy_from_slice(values);
+        if let Some(w) = self.wave.as_mut() {
+            w.forces_fresh = false;
+        }
+    }
+
+    /// A scalar wave's u̇ per node.
+    pub fn velocity(&self) -> Option<&[f64]> {
+        self.wave.as_ref().map(|w| w.velocity.as_slice())
+    }
+
+    /// The absorbing layer's nodes, in the layer's order.
+    pub fn absorbing_nodes(&self) -> &[u32] {
+        self.absorber.as_ref().map_or(&[], |a| a.layer.nodes.as_slice())
+    }
+
+    /// `check`'s lines on the absorbing layer (its ‖V‖ and cond(M)).
+    pub fn absorbing_report(&self) -> Vec<String> {
+        self.absorber.as_ref().map_or(Vec::new(), |a| a.report())
     }
 
     pub fn operator(&self) -> &ScalarOperator {
@@ -532,6 +595,95 @@ impl<const D: usize> ScalarSimulation<D> {
             .reduce(|| 0.0, f64::max)
     }
 
+    /// The absorbing layer's new values (and a wave's rates) from the state at t^n (and
+    /// t^{n−1}), before anything is advanced; rows refitted first if Δt changed.
+    fn absorb_prepare(&mut self) {
+        let Some(a) = self.absorber.as_mut() else {
+            return;
+        };
+        let nodes = &self.discretization.nodes;
+        a.ensure_fitted(
+            self.run.clock.dt(),
+            nodes.base.reference(),
+            &self.discretization.families,
+        );
+        let field = nodes.fields.get(self.field);
+        match &self.wave {
+            Some(w) => {
+                a.layer.values(field, &w.previous_field, &mut a.values);
+                a.layer
+                    .rates(&w.velocity, &w.previous_velocity, &mut a.rates);
+            }
+            None => a.layer.values(field, field, &mut a.values),
+        }
+    }
+
+    /// One forward-Euler step (3.10), then the held values, a multi-grid scene's fictitious
+    /// values and the absorbing layer; returns max |C^{n+1}| of the solved rows.
+    fn euler_step(&mut self, lap: &mut Lap) -> f64 {
+        let t = self.run.clock.time();
+        self.rates();
+        self.absorb_prepare();
+        lap.charge(&mut self.run.stages, RATES);
+        let max_value = self.euler_update(t);
+        lap.charge(&mut self.run.stages, UPDATE);
+        self.hold_reference(self.run.clock.next_time());
+        let field = self.discretization.nodes.fields.get_mut(self.field);
+        // The fictitious nodes of a multi-grid scene take their values from the other level.
+        if let Some(g) = &self.multigrid {
+            g.transfer(field);
+        }
+        if let Some(a) = &self.absorber {
+            a.overwrite(field);
+        }
+        lap.charge(&mut self.run.stages, HOLD);
+        max_value
+    }
+
+    /// One damped velocity-Verlet step (4.62) of a scalar wave, the absorbing layer overwritten
+    /// after each half (its u^{n+1} before L u^{n+1} is taken, its u̇^{n+1} at the end);
+    /// returns max |u^{n+1}|.
+    fn verlet_step(&mut self, lap: &mut Lap) -> f64 {
+        let dt = self.run.clock.dt();
+        if !self.wave.as_ref().is_some_and(|w| w.forces_fresh) {
+            self.rates();
+        }
+        self.absorb_prepare();
+        lap.charge(&mut self.run.stages, RATES);
+        let Some(w) = self.wave.as_mut() else {
+            return 0.0;
+        };
+        let d = w.damping;
+        let field = self.discretization.nodes.fields.get_mut(self.field);
+        w.previous_field.copy_from_slice(field);
+        w.previous_velocity.copy_from_slice(&w.velocity);
+        for (r, &i) in self.operator.rows.iter().enumerate() {
+            let i = i as usize;
+            let acceleration = self.rate[r] - 2.0 * d * w.velocity[i];
+            field[i] += dt * w.velocity[i] + 0.5 * dt * dt * acceleration;
+            w.half[r] = w.velocity[i] + 0.5 * dt * acceleration;
+        }
+        if let Some(a) = &self.absorber {
+            a.overwrite(field);
+        }
+        lap.charge(&mut self.run.stages, UPDATE);
+        self.rates();
+        lap.charge(&mut self.run.stages, RATES);
+        let Some(w) = self.wave.as_mut() else {
+            return 0.0;
+        };
+        for (r, &i) in self.operator.rows.iter().enumerate() {
+            w.velocity[i as usize] = (w.half[r] + 0.5 * dt * self.rate[r]) / (1.0 + dt * d);
+        }
+        if let Some(a) = &self.absorber {
+            a.overwrite_rates(&mut w.velocity);
+        }
+        w.forces_fresh = true;
+        lap.charge(&mut self.run.stages, HOLD);
+        let field = self.discretization.nodes.fields.get(self.field);
+        field.iter().fold(0.0, |m: f64, v| m.max(v.abs()))
+    }
+
     /// Solid nodes below C_sat turn liquid (corrosion scenes), logged as an event.
     fn change_phases(&mut self) {
         let Some(c) = &self.corrosion else {
@@ -595,17 +747,11 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             self.run.clock.advance();
             return Ok(());
         }
-        let t = self.run.clock.time();
-        self.rates();
-        lap.charge(&mut self.run.stages, RATES);
-        let max_value = self.euler_update(t);
-        lap.charge(&mut self.run.stages, UPDATE);
-        self.hold_reference(self.run.clock.next_time());
-        // The fictitious nodes of a multi-grid scene take their values from the other level.
-        if let Some(g) = &self.multigrid {
-            g.transfer(self.discretization.nodes.fields.get_mut(self.field));
-        }
-        lap.charge(&mut self.run.stages, HOLD);
+        let max_value = if self.wave.is_some() {
+            self.verlet_step(&mut lap)
+        } else {
+            self.euler_step(&mut lap)
+        };
         self.change_phases();
         lap.charge(&mut self.run.stages, PHASE_CHANGE);
         self.run.clock.advance();
@@ -651,9 +797,19 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
         } else {
             -amplitude
         };
+        if self.absorber.is_some() || self.wave.is_some() {
+            let energy = far_field::near_field_energy(
+                &self.operator,
+                self.field(),
+                self.wave.as_ref().map(|w| w.velocity.as_slice()),
+                &self.active_volumes,
+                self.absorber.as_ref().map(|a| a.is_absorbing.as_slice()),
+            );
+            scalars.push(("energy/near_field".to_string(), energy));
+        }
         let mut fields = vec![NodeField {
             name: match self.scene.physics {
-                Physics::Static => "displacement",
+                Physics::Static | Physics::ScalarWave => "displacement",
                 _ => "concentration",
             },
             values: self.field().to_vec(),
@@ -672,7 +828,19 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
                 range: (-range, range),
             });
         }
-        let classes = self.corrosion_frame(&mut scalars);
+        if let Some(w) = &self.wave {
+            let top = w.velocity.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+            let range = if top > 0.0 { top } else { 1.0 };
+            fields.push(NodeField {
+                name: "velocity",
+                values: w.velocity.clone(),
+                range: (-range, range),
+            });
+        }
+        let mut classes = self.corrosion_frame(&mut scalars);
+        if let Some(a) = &self.absorber {
+            classes.push(a.class_field());
+        }
         let radii = self.multigrid.as_ref().map_or(Vec::new(), |g| {
             GridClass::radii(&g.class, g.coarse.spacing, g.fine.spacing)
         });
@@ -717,6 +885,11 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
         let mut state = State::default();
         self.run.clock.save(&mut state);
         state.put_f64("field", self.field().to_vec());
+        if let Some(w) = &self.wave {
+            state.put_f64("velocity", w.velocity.clone());
+            state.put_f64("previous_field", w.previous_field.clone());
+            state.put_f64("previous_velocity", w.previous_velocity.clone());
+        }
         if let Some(phase) = self.phase() {
             state.put_u8("phase", phase.iter().map(|&p| p as u8).collect());
         }
@@ -750,6 +923,14 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
         fields.get_mut(self.field).copy_from_slice(field);
         if let (Some(c), Some(phase)) = (&self.corrosion, phase) {
             fields.get_mut(c.phase).copy_from_slice(&phase);
+        }
+        if let Some(w) = self.wave.as_mut() {
+            w.velocity.copy_from_slice(state.f64("velocity", n)?);
+            w.previous_field
+                .copy_from_slice(state.f64("previous_field", n)?);
+            w.previous_velocity
+                .copy_from_slice(state.f64("previous_velocity", n)?);
+            w.forces_fresh = false;
         }
         self.run.clock = clock;
         Ok(())

@@ -1,0 +1,215 @@
+//! Absorbing layers at the truncation of unbounded domains (thesis Chapter 4;
+//! seed-thesis-ch4-5 §1–§4): the far field's dispersion relations, the minimum-norm fit of
+//! its modes, and the layer's precomputed update rows. The scalar equations' layers
+//! (diffusion (§4.1), scalar waves (§4.2)) are built here from a scene.
+
+pub mod dispersion;
+pub mod fit;
+pub mod layer;
+
+pub use dispersion::ScalarLattice;
+pub use layer::{AbsorbingLayer, CloudSpec, Levels, Mode, NodeReport};
+
+use nalgebra::Complex;
+
+use crate::discretization::Families;
+use crate::scene::{AbsorbingSpec, Dispersion, Solid, WaveNumberSet};
+
+/// The scalar far field a layer's modes solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ScalarFarField {
+    /// Ċ = L C: real modes exp(k N·x + ω̄ t), k < 0 (4.25); `diffusivity` D for local modes.
+    Diffusion { diffusivity: f64 },
+    /// ü = L u − 2 d u̇: outgoing modes e^{−dt} exp(i(k N·x − ω̃ t)) (4.53), (4.57); χ² for
+    /// local modes.
+    Wave { speed_squared: f64, damping: f64 },
+}
+
+/// The nodes within `width` of the truncation surface (strictly: a node whose whole family
+/// lies inside is not absorbing) and their unit outward normals.
+pub fn layer_nodes<const D: usize>(
+    solid: &Solid,
+    positions: &[[f64; D]],
+    width: f64,
+    eps: f64,
+) -> Vec<(u32, [f64; D])> {
+    positions
+        .iter()
+        .enumerate()
+        .filter_map(|(i, x)| {
+            let (distance, normal) = solid.truncation(x, width)?;
+            (distance < width - eps).then(|| (i as u32, std::array::from_fn(|k| normal[k])))
+        })
+        .collect()
+}
+
+/// The mode directions about an outward normal: diffusion's first quadrant of the frame
+/// turned by θ_n − π/4 ((4.22), (4.24)), the waves' θ_n + [−Δφ, Δφ] ((4.56)).
+fn directions<const D: usize>(normal: &[f64; D], spec: &AbsorbingSpec, wave: bool) -> Vec<[f64; D]> {
+    if D == 1 {
+        return vec![*normal];
+    }
+    let theta = normal[1].atan2(normal[0]);
+    let (start, span) = if wave {
+        (theta - spec.spread, 2.0 * spec.spread)
+    } else {
+        (theta - std::f64::consts::FRAC_PI_4, std::f64::consts::FRAC_PI_2)
+    };
+    let n = spec.directions;
+    (0..n)
+        .map(|l| {
+            let phi = if n == 1 {
+                theta
+            } else {
+                start + span * l as f64 / (n - 1) as f64
+            };
+            std::array::from_fn(|k| if k == 0 { phi.cos() } else { phi.sin() })
+        })
+        .collect()
+}
+
+/// The wave numbers: diffusion k ∈ Δk·[−1, 0) (4.25); waves (0, Δk] (4.154, erratum 6) or the
+/// printed symmetric [−Δk, Δk] (4.56).
+fn wave_numbers(spec: &AbsorbingSpec, wave: bool) -> Vec<f64> {
+    let (n, dk) = (spec.wave_numbers, spec.max_wave_number);
+    (0..n)
+        .map(|m| match (wave, spec.wave_number_set) {
+            (false, _) => -dk + dk * m as f64 / n as f64,
+            (true, WaveNumberSet::Positive) => dk * (m + 1) as f64 / n as f64,
+            (true, WaveNumberSet::Symmetric) if n == 1 => 0.0,
+            (true, WaveNumberSet::Symmetric) => -dk + 2.0 * dk * m as f64 / (n - 1) as f64,
+        })
+        .collect()
+}
+
+/// The modes of one absorbing node with outward normal `normal`.
+pub fn scalar_modes<const D: usize>(
+    normal: &[f64; D],
+    spec: &AbsorbingSpec,
+    lattice: &ScalarLattice<D>,
+    far: ScalarFarField,
+) -> Vec<Mode<D>> {
+    let wave = matches!(far, ScalarFarField::Wave { .. });
+    let ks = wave_numbers(spec, wave);
+    let mut modes = Vec::new();
+    for n in directions(normal, spec, wave) {
+        for &k in &ks {
+            let mode = match far {
+                ScalarFarField::Diffusion { diffusivity } => {
+                    // Discrete: L exp(k N·x) = Σ w (cosh(k N·ξ) − 1) exp(k N·x).
+                    let rate = match spec.dispersion {
+                        Dispersion::Local => diffusivity * k * k,
+                        Dispersion::Discrete => lattice.real_symbol(k, &n),
+                    };
+                    Mode {
+                        wave_vector: std::array::from_fn(|c| Complex::new(k * n[c], 0.0)),
+                        rate: Complex::new(rate, 0.0),
+                    }
+                }
+                ScalarFarField::Wave {
+                    speed_squared,
+                    damping,
+                } => {
+                    let symbol = match spec.dispersion {
+                        Dispersion::Local => speed_squared * k * k,
+                        Dispersion::Discrete => lattice.symbol(k, &n),
+                    };
+                    // ω̃ = √(S − d²), the principal root (non-oscillating below d², harmless).
+                    let omega = Complex::new(symbol - damping * damping, 0.0).sqrt();
+                    Mode {
+                        wave_vector: std::array::from_fn(|c| Complex::new(0.0, k * n[c])),
+                        rate: Complex::new(-damping, 0.0) - Complex::new(0.0, 1.0) * omega,
+                    }
+                }
+            };
+            modes.push(mode);
+        }
+    }
+    modes
+}
+
+/// The cloud of absorbing node `i`: itself, then the family members within d∞ (behind it in
+/// the backward cone (4.86) if `spec.cone`), thinned to every 2^thin-th lattice offset.
+fn cloud<const D: usize>(
+    i: u32,
+    normal: &[f64; D],
+    positions: &[[f64; D]],
+    families: &Families,
+    spec: &AbsorbingSpec,
+    spacing: f64,
+    thin: u32,
+) -> Vec<u32> {
+    let x = positions[i as usize];
+    let stride = 1i64 << thin;
+    let mut out = vec![i];
+    let row = families.offsets[i as usize]..families.offsets[i as usize + 1];
+    for e in row {
+        if families.lengths[e] > spec.cloud_radius * (1.0 + 1e-9) {
+            continue;
+        }
+        let j = families.neighbors[e];
+        let rel: [f64; D] = std::array::from_fn(|k| positions[j as usize][k] - x[k]);
+        let r = families.lengths[e];
+        let ahead: f64 = rel.iter().zip(normal).map(|(a, b)| a * b).sum();
+        if spec.cone && -ahead <= r * spec.spread.sin() + 1e-12 * r {
+            continue;
+        }
+        let on_stride = rel
+            .iter()
+            .all(|v| ((v / spacing).round() as i64).rem_euclid(stride) == 0);
+        if on_stride {
+            out.push(j);
+        }
+    }
+    out
+}
+
+/// The fitted layer of a scalar scene: modes and clouds per node, one SVD per fitted row;
+/// with `spec.thinning`, a node whose ‖V‖ or cond(M) exceeds its limit gets its cloud thinned
+/// (density halved along the axes, up to 3 times; thesis Fig. 4.23).
+#[allow(clippy::too_many_arguments)]
+pub fn scalar_layer<const D: usize>(
+    spec: &AbsorbingSpec,
+    nodes: &[(u32, [f64; D])],
+    positions: &[[f64; D]],
+    families: &Families,
+    lattice: &ScalarLattice<D>,
+    far: ScalarFarField,
+    spacing: f64,
+    dt: f64,
+) -> AbsorbingLayer {
+    let levels = match far {
+        ScalarFarField::Diffusion { .. } => Levels::One,
+        ScalarFarField::Wave { .. } => Levels::Two,
+    };
+    let mut thin = vec![0u32; nodes.len()];
+    let specs = |thin: &[u32]| -> Vec<CloudSpec<D>> {
+        nodes
+            .iter()
+            .zip(thin)
+            .map(|((i, n), &t)| CloudSpec {
+                node: *i,
+                modes: scalar_modes(n, spec, lattice, far),
+                cloud: cloud(*i, n, positions, families, spec, spacing, t),
+            })
+            .collect()
+    };
+    let mut layer = AbsorbingLayer::fit(positions, &specs(&thin), levels, dt, spec.cutoff);
+    if !spec.thinning {
+        return layer;
+    }
+    for _ in 0..3 {
+        let mut changed = false;
+        for (t, r) in thin.iter_mut().zip(&layer.reports) {
+            if (r.norm > spec.max_norm || r.condition > spec.max_condition) && r.cloud > 2 {
+                *t += 1;
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+        layer = AbsorbingLayer::fit(positions, &specs(&thin), levels, dt, spec.cutoff);
+    }
+    layer
+}

@@ -1,0 +1,264 @@
+//! `[absorbing]`, the scalar wave's material and the initial pulses → their scene specs, with
+//! the defaults of thesis §4.1.3, §4.2.3 per physics (seed-thesis-ch4-5 §1.3).
+
+use super::error::{ErrorContext, SceneError};
+use super::schema::{AbsorbingTable, Physics, Preset};
+use super::validate::{length, point, positive};
+use super::*;
+use crate::model::pmb::Influence;
+
+/// ½ ∫_H ω(r) ξ₁² / r^p dV: the second moment that calibrates a scalar PD kernel to its local
+/// limit (c_s = χ² / moment; thesis (4.47), (4.51), (4.87); Table 4.1 for diffusion).
+pub fn second_moment(dim: usize, exponent: f64, influence: Influence, horizon: f64) -> f64 {
+    let n = dim as f64;
+    let sphere = match dim {
+        1 => 2.0,
+        2 => std::f64::consts::TAU,
+        _ => 4.0 * std::f64::consts::PI,
+    };
+    // ∫_0^δ ω(r) r^a dr with a = n + 1 − p.
+    let a = n + 1.0 - exponent;
+    let radial = match influence {
+        Influence::Constant => horizon.powf(a + 1.0) / (a + 1.0),
+        Influence::Linear => horizon.powf(a + 1.0) * (1.0 / (a + 1.0) - 1.0 / (a + 2.0)),
+    };
+    sphere / (2.0 * n) * radial
+}
+
+/// The scalar wave: χ, d, and its kernel c_s ω / r^p as a [`DiffusionSpec`] (the operator is the
+/// diffusion one with κ = c_s).
+pub(super) fn wave(
+    p: &Preset,
+    ctx: &ErrorContext,
+    dim: usize,
+    horizon: f64,
+) -> Result<(WaveSpec, DiffusionSpec), SceneError> {
+    let m = &p.material;
+    let speed = match m.wave_speed {
+        Some(v) => positive(ctx, "material.wave_speed", v.si())?,
+        None => {
+            return Err(ctx.error(
+                "material.wave_speed",
+                "a scalar wave needs χ (`wave_speed`, m/s)",
+            ));
+        }
+    };
+    let damping = m.damping.map_or(0.0, |d| d.si());
+    if !(damping >= 0.0 && damping.is_finite()) {
+        return Err(ctx.error(
+            "material.damping",
+            format!("d must be a finite number ≥ 0 (1/s), got {damping}"),
+        ));
+    }
+    let exponent = m.kernel_exponent.unwrap_or(2.0);
+    if !(0.0..dim as f64 + 1.0).contains(&exponent) {
+        return Err(ctx.error(
+            "material.kernel_exponent",
+            format!(
+                "p must be in [0, {}) so the {dim}D kernel's second moment is finite, got {exponent}",
+                dim + 1
+            ),
+        ));
+    }
+    let moment = second_moment(dim, exponent, m.influence, horizon);
+    Ok((
+        WaveSpec { speed, damping },
+        DiffusionSpec {
+            diffusivity: speed * speed / moment,
+            exponent,
+            influence: m.influence,
+            corrosion: None,
+        },
+    ))
+}
+
+pub(super) fn pulses(p: &Preset, ctx: &ErrorContext, dim: usize) -> Result<Vec<Pulse>, SceneError> {
+    p.initial
+        .pulse
+        .iter()
+        .enumerate()
+        .map(|(i, q)| {
+            let path = format!("initial.pulse[{i}]");
+            let center = point(&q.center, dim, &format!("{path}.center"))
+                .map_err(|m| ctx.from_path_message(&m))?;
+            let amplitude = q.amplitude.si();
+            if !amplitude.is_finite() {
+                return Err(ctx.error(
+                    &format!("{path}.amplitude"),
+                    format!("must be finite, got {amplitude}"),
+                ));
+            }
+            let decay = positive(ctx, &format!("{path}.decay"), q.decay.si())?;
+            Ok(Pulse {
+                center,
+                amplitude,
+                decay,
+            })
+        })
+        .collect()
+}
+
+fn in_range(ctx: &ErrorContext, field: &str, v: f64, ok: bool, range: &str) -> Result<f64, SceneError> {
+    if ok && v.is_finite() {
+        Ok(v)
+    } else {
+        Err(ctx.error(field, format!("must be in {range}, got {v}")))
+    }
+}
+
+/// `[absorbing]` with the defaults of its physics: diffusion fits real local modes on one
+/// level with a cloud of radius δ/2 all around the node; waves fit outgoing modes of the
+/// discrete dispersion relation on two levels, with a cloud of radius δ behind the node.
+pub(super) fn absorbing(
+    table: &AbsorbingTable,
+    ctx: &ErrorContext,
+    scene: (usize, Physics, &Solid),
+    spacing: f64,
+    horizon: f64,
+) -> Result<AbsorbingSpec, SceneError> {
+    let (dim, physics, solid) = scene;
+    let wave = match physics {
+        Physics::ScalarWave => true,
+        Physics::Diffusion | Physics::Corrosion => false,
+        _ => {
+            return Err(ctx.error(
+                "absorbing",
+                "absorbing layers are available for physics = \"diffusion\", \"corrosion\" and \
+                 \"scalar-wave\"",
+            ));
+        }
+    };
+    if dim > 2 {
+        return Err(ctx.error(
+            "absorbing",
+            format!("absorbing layers are implemented in 1D and 2D; this scene is {dim}D"),
+        ));
+    }
+    if !matches!(solid, Solid::Box { .. } | Solid::Sphere { .. }) {
+        return Err(ctx.error(
+            "geometry",
+            "an absorbing layer needs the truncation to be one box or one sphere (disc)",
+        ));
+    }
+    let width = match table.width {
+        Some(m) => positive(ctx, "absorbing.width", length(ctx, "absorbing.width", m, spacing, horizon)?)?,
+        None => horizon,
+    };
+    let cloud_radius = match table.cloud_radius {
+        Some(m) => positive(
+            ctx,
+            "absorbing.cloud_radius",
+            length(ctx, "absorbing.cloud_radius", m, spacing, horizon)?,
+        )?,
+        None if wave => horizon,
+        None => 0.5 * horizon,
+    };
+    if cloud_radius > horizon * (1.0 + 1e-9) {
+        return Err(ctx.error(
+            "absorbing.cloud_radius",
+            format!(
+                "d∞ = {cloud_radius:.4e} m must be within the horizon {horizon:.4e} m (clouds are \
+                 taken from the families)"
+            ),
+        ));
+    }
+    let count = |field: &str, v: Option<usize>, default: usize, max: usize| {
+        let v = v.unwrap_or(default);
+        if (1..=max).contains(&v) {
+            Ok(v)
+        } else {
+            Err(ctx.error(field, format!("must be in 1..={max}, got {v}")))
+        }
+    };
+    // 2D diffusion: n_b = 55 = 5 × 11 (thesis §4.1.5 [inferred]); waves: ≥ 10 subdivisions.
+    let wave_numbers = count("absorbing.wave_numbers", table.wave_numbers, if dim == 1 || wave { 20 } else { 5 }, 200)?;
+    let directions = count("absorbing.directions", table.directions, if dim == 1 { 1 } else { 11 }, 90)?;
+    if dim == 1 && directions != 1 {
+        return Err(ctx.error(
+            "absorbing.directions",
+            format!("a 1D layer has one direction (the normal), got {directions}"),
+        ));
+    }
+    // Δk = 1 (thesis §4.1.4 [note's check], §4.2.4–4.2.6).
+    let max_wave_number = match table.max_wave_number {
+        Some(k) => positive(ctx, "absorbing.max_wave_number", k)?,
+        None => 1.0,
+    };
+    let nyquist = std::f64::consts::PI / spacing;
+    if wave && max_wave_number > nyquist * (1.0 + 1e-12) {
+        return Err(ctx.error(
+            "absorbing.max_wave_number",
+            format!("Δk must be in (0, π/Δx] = (0, {nyquist:.4e}] 1/m (4.83), got {max_wave_number}"),
+        ));
+    }
+    let spread_degrees = table.spread_degrees.unwrap_or(if dim == 1 { 0.0 } else { 45.0 });
+    let spread = in_range(
+        ctx,
+        "absorbing.spread_degrees",
+        spread_degrees,
+        (0.0..90.0).contains(&spread_degrees),
+        "[0, 90) degrees",
+    )?
+    .to_radians();
+    let cutoff = table.cutoff.unwrap_or(1e-10);
+    let cutoff = in_range(ctx, "absorbing.cutoff", cutoff, (0.0..1.0).contains(&cutoff), "[0, 1)")?;
+    let max_norm = positive(ctx, "absorbing.max_norm", table.max_norm.unwrap_or(2.0))?;
+    let max_condition = table.max_condition.unwrap_or(1e12);
+    let max_condition = in_range(
+        ctx,
+        "absorbing.max_condition",
+        max_condition,
+        max_condition > 1.0,
+        "(1, ∞)",
+    )?;
+    Ok(AbsorbingSpec {
+        width,
+        cloud_radius,
+        wave_numbers,
+        directions,
+        max_wave_number,
+        spread,
+        wave_number_set: table.wave_number_set,
+        dispersion: table.dispersion.unwrap_or(if wave {
+            Dispersion::Discrete
+        } else {
+            Dispersion::Local
+        }),
+        cutoff,
+        cone: table.cone.unwrap_or(wave),
+        max_norm,
+        max_condition,
+        thinning: table.thinning,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Table 4.1 of the thesis (κ0, κ1 per D) and the wave constants (4.47), (4.51), (4.87).
+    #[test]
+    fn second_moments_give_the_papers_constants() {
+        use std::f64::consts::PI;
+        let d: f64 = 0.7;
+        let cases = [
+            (1, 0.0, Influence::Constant, 3.0 / d.powi(3)),
+            (1, 1.0, Influence::Constant, 2.0 / d.powi(2)),
+            (1, 0.0, Influence::Linear, 12.0 / d.powi(3)),
+            (1, 1.0, Influence::Linear, 6.0 / d.powi(2)),
+            (2, 0.0, Influence::Constant, 8.0 / (PI * d.powi(4))),
+            (2, 1.0, Influence::Constant, 6.0 / (PI * d.powi(3))),
+            (3, 1.0, Influence::Constant, 6.0 / (PI * d.powi(4))),
+            (3, 1.0, Influence::Linear, 30.0 / (PI * d.powi(4))),
+            (2, 1.0, Influence::Linear, 24.0 / (PI * d.powi(3))),
+            (2, 2.0, Influence::Constant, 4.0 / (PI * d * d)),
+            (2, 2.0, Influence::Linear, 12.0 / (PI * d * d)),
+            (3, 2.0, Influence::Constant, 9.0 / (2.0 * PI * d.powi(3))),
+            (3, 2.0, Influence::Linear, 18.0 / (PI * d.powi(3))),
+        ];
+        for (dim, p, w, kappa) in cases {
+            let got = 1.0 / second_moment(dim, p, w, d);
+            assert!((got / kappa - 1.0).abs() < 1e-12, "{dim}D p = {p} {w:?}: {got} vs {kappa}");
+        }
+    }
+}

@@ -1,0 +1,220 @@
+//! What a scalar simulation of an unbounded domain adds: the absorbing layer built from the
+//! scene and refitted when Δt changes (thesis §4.1–4.2), the scalar wave's velocity state for
+//! damped velocity-Verlet (4.62), and the near-field energy the viewer watches fall.
+
+use crate::absorb::{self, AbsorbingLayer, ScalarFarField, ScalarLattice};
+use crate::discretization::{Families, Quadrature};
+use crate::frame::ClassField;
+use crate::model::diffusion::DiffusionKernel;
+use crate::scene::{AbsorbingSpec, Physics, Scene};
+use crate::scheme::ScalarOperator;
+
+/// The layer's class field ids.
+const NEAR_FIELD: u16 = 0;
+const ABSORBING: u16 = 1;
+const CLASSES: &[(u16, &str, [u8; 3])] = &[
+    (NEAR_FIELD, "near field", [200, 200, 200]),
+    (ABSORBING, "absorbing", [217, 72, 1]),
+];
+
+/// An absorbing layer and what it needs to be refitted at another Δt.
+pub struct Absorber<const D: usize> {
+    pub spec: AbsorbingSpec,
+    pub layer: AbsorbingLayer,
+    nodes: Vec<(u32, [f64; D])>,
+    lattice: ScalarLattice<D>,
+    far: ScalarFarField,
+    spacing: f64,
+    /// The Δt the rows were fitted for.
+    dt: f64,
+    pub is_absorbing: Vec<bool>,
+    /// The layer's new values and rates, one per absorbing node.
+    pub values: Vec<f64>,
+    pub rates: Vec<f64>,
+}
+
+impl<const D: usize> Absorber<D> {
+    /// The layer's nodes of `scene` (none without `[absorbing]`).
+    pub fn nodes(scene: &Scene, positions: &[[f64; D]]) -> Vec<(u32, [f64; D])> {
+        match &scene.absorbing {
+            Some(spec) => {
+                absorb::layer_nodes(&scene.solid, positions, spec.width, 1e-9 * scene.spacing)
+            }
+            None => Vec::new(),
+        }
+    }
+
+    /// The far field of `scene` with `kernel` (κ = c_s for waves): its lattice quadrature and
+    /// the local coefficient (D or χ²) of its modes.
+    pub fn new(
+        scene: &Scene,
+        spec: AbsorbingSpec,
+        nodes: Vec<(u32, [f64; D])>,
+        kernel: &DiffusionKernel,
+        n: usize,
+    ) -> Self {
+        let quadrature = Quadrature::of_scene(scene);
+        let lattice = ScalarLattice::<D>::new(&quadrature, |r| kernel.weight(r));
+        let local = kernel.diffusivity
+            * crate::scene::second_moment(D, kernel.exponent, kernel.influence, kernel.horizon);
+        let far = match (scene.physics, scene.wave) {
+            (Physics::ScalarWave, Some(w)) => ScalarFarField::Wave {
+                speed_squared: local,
+                damping: w.damping,
+            },
+            _ => ScalarFarField::Diffusion { diffusivity: local },
+        };
+        let mut is_absorbing = vec![false; n];
+        nodes.iter().for_each(|(i, _)| is_absorbing[*i as usize] = true);
+        let count = nodes.len();
+        Absorber {
+            spec,
+            layer: AbsorbingLayer::fit::<D>(&[], &[], absorb::Levels::One, 0.0, 0.0),
+            nodes,
+            lattice,
+            far,
+            spacing: scene.spacing,
+            dt: f64::NAN,
+            is_absorbing,
+            values: vec![0.0; count],
+            rates: vec![0.0; count],
+        }
+    }
+
+    /// Fits the rows for `dt` unless they already are.
+    pub fn ensure_fitted(&mut self, dt: f64, positions: &[[f64; D]], families: &Families) {
+        if self.dt == dt {
+            return;
+        }
+        self.layer = absorb::scalar_layer(
+            &self.spec,
+            &self.nodes,
+            positions,
+            families,
+            &self.lattice,
+            self.far,
+            self.spacing,
+            dt,
+        );
+        self.dt = dt;
+    }
+
+    /// Writes the layer's new values into the node field.
+    pub fn overwrite(&self, values: &mut [f64]) {
+        for (a, &i) in self.layer.nodes.iter().enumerate() {
+            values[i as usize] = self.values[a];
+        }
+    }
+
+    /// Writes the layer's new rates (a wave's u̇) into the velocity field.
+    pub fn overwrite_rates(&self, rates: &mut [f64]) {
+        for (a, &i) in self.layer.nodes.iter().enumerate() {
+            rates[i as usize] = self.rates[a];
+        }
+    }
+
+    pub fn class_field(&self) -> ClassField {
+        ClassField {
+            name: "boundary",
+            ids: self
+                .is_absorbing
+                .iter()
+                .map(|&a| if a { ABSORBING } else { NEAR_FIELD })
+                .collect(),
+            classes: CLASSES,
+        }
+    }
+
+    /// `check`'s lines: the layer's size and its worst ‖V‖ and cond(M) against the limits.
+    pub fn report(&self) -> Vec<String> {
+        let Some((norm, cond)) = self.layer.worst() else {
+            return vec!["absorbing layer: no node".into()];
+        };
+        let above = |f: &dyn Fn(&absorb::NodeReport) -> bool| {
+            self.layer.reports.iter().filter(|r| f(r)).count()
+        };
+        vec![
+            format!(
+                "absorbing layer: {} nodes, {} modes per node, clouds of {}–{} nodes",
+                self.layer.nodes.len(),
+                norm.modes,
+                self.layer.reports.iter().map(|r| r.cloud).min().unwrap_or(0),
+                self.layer.reports.iter().map(|r| r.cloud).max().unwrap_or(0),
+            ),
+            format!(
+                "absorbing layer: max ‖Re V‖ = {:.4} at node {} ({} above the limit {}); max \
+                 cond(M) = {:.3e} at node {} ({} above {:.1e}; SVD cut-off {:.1e})",
+                norm.norm,
+                norm.node,
+                above(&|r| r.norm > self.spec.max_norm),
+                self.spec.max_norm,
+                cond.condition,
+                cond.node,
+                above(&|r| r.condition > self.spec.max_condition),
+                self.spec.max_condition,
+                self.spec.cutoff
+            ),
+        ]
+    }
+}
+
+/// The velocity state of damped velocity-Verlet (4.62) for a scalar wave, and the previous
+/// time level the absorbing layer fits on.
+pub struct Wave {
+    pub damping: f64,
+    pub velocity: Vec<f64>,
+    pub previous_field: Vec<f64>,
+    pub previous_velocity: Vec<f64>,
+    /// Per operator row: v^n + Δt/2 a^n between the two half steps.
+    pub half: Vec<f64>,
+    /// The rate buffer holds L u of the current field.
+    pub forces_fresh: bool,
+}
+
+impl Wave {
+    pub fn new(damping: f64, field: &[f64], rows: usize) -> Wave {
+        Wave {
+            damping,
+            velocity: vec![0.0; field.len()],
+            // At rest before t = 0 (the far field is at rest; u̇0 = 0 in every example).
+            previous_field: field.to_vec(),
+            previous_velocity: vec![0.0; field.len()],
+            half: vec![0.0; rows],
+            forces_fresh: false,
+        }
+    }
+}
+
+/// The energy in the near field (rows of `operator` not in the layer, weighted by `volumes`):
+/// diffusion Π = ½ Σ C² V (seed-thesis-ch4-5 erratum 13); a wave
+/// ½ Σ V (u̇² + ½ Σ_j w_ij (u_j − u_i)²) (the discrete form of (4.99)).
+pub fn near_field_energy(
+    operator: &ScalarOperator,
+    field: &[f64],
+    velocity: Option<&[f64]>,
+    volumes: &[f64],
+    absorbing: Option<&[bool]>,
+) -> f64 {
+    let mut sum = 0.0;
+    for (r, &i) in operator.rows.iter().enumerate() {
+        let i = i as usize;
+        if absorbing.is_some_and(|a| a[i]) {
+            continue;
+        }
+        let u = field[i];
+        sum += 0.5 * volumes[i] * match velocity {
+            None => u * u,
+            Some(v) => {
+                let range = operator.offsets[r]..operator.offsets[r + 1];
+                let potential: f64 = operator.columns[range.clone()]
+                    .iter()
+                    .zip(&operator.weights[range])
+                    .filter(|&(&j, _)| j as usize != i)
+                    .map(|(&j, w)| w * (field[j as usize] - u).powi(2))
+                    .sum();
+                v[i] * v[i] + 0.5 * potential
+            }
+        };
+    }
+    sum
+}
