@@ -245,7 +245,10 @@ pub fn continuum_bond_matrix(
         micromodulus
             * polar_integral(horizon, |r, theta| {
                 let n = [theta.cos(), theta.sin()];
-                influence(kind, r, horizon) * n[i] * n[j] * (1.0 - (k * r * dot(direction, &n)).cos())
+                influence(kind, r, horizon)
+                    * n[i]
+                    * n[j]
+                    * (1.0 - (k * r * dot(direction, &n)).cos())
             })
     };
     let off = entry(0, 1);
@@ -277,11 +280,17 @@ mod tests {
         ];
         for (kd, continuum, discrete) in table {
             let k = kd / delta;
-            assert!((continuum_wave_1d(k, 1.0, delta) - continuum).abs() < 1e-4, "kδ = {kd}");
+            assert!(
+                (continuum_wave_1d(k, 1.0, delta) - continuum).abs() < 1e-4,
+                "kδ = {kd}"
+            );
             for (m, want) in [2.0, 5.0, 10.0].iter().zip(discrete) {
                 let lattice = ScalarLattice::<1>::new(&quadrature(delta / m, delta), |_| cs);
                 let got = lattice.frequency(k, &[1.0]);
-                assert!((got - want).abs() < 1e-4, "kδ = {kd}, m = {m}: {got} vs {want}");
+                assert!(
+                    (got - want).abs() < 1e-4,
+                    "kδ = {kd}, m = {m}: {got} vs {want}"
+                );
             }
         }
     }
@@ -306,10 +315,20 @@ mod tests {
             let c = continuum_wave_2d(k, cs, 2.0, Influence::Constant, delta);
             assert!((c - continuum).abs() < 1e-4, "kδ = {kd}: {c}");
             for (m, (along, diag)) in [2.0, 8.0].iter().zip(discrete) {
-                let lattice = ScalarLattice::<2>::new(&quadrature(delta / m, delta), |r| cs / (r * r));
-                let (a, d) = (lattice.frequency(k, &[1.0, 0.0]), lattice.frequency(k, &diagonal));
-                assert!((a - along).abs() < 1e-4, "kδ = {kd}, m = {m}: {a} vs {along}");
-                assert!((d - diag).abs() < 1e-4, "kδ = {kd}, m = {m}, π/4: {d} vs {diag}");
+                let lattice =
+                    ScalarLattice::<2>::new(&quadrature(delta / m, delta), |r| cs / (r * r));
+                let (a, d) = (
+                    lattice.frequency(k, &[1.0, 0.0]),
+                    lattice.frequency(k, &diagonal),
+                );
+                assert!(
+                    (a - along).abs() < 1e-4,
+                    "kδ = {kd}, m = {m}: {a} vs {along}"
+                );
+                assert!(
+                    (d - diag).abs() < 1e-4,
+                    "kδ = {kd}, m = {m}, π/4: {d} vs {diag}"
+                );
             }
         }
     }
@@ -327,15 +346,30 @@ mod tests {
         ] {
             let waves = BondLattice::new(&quadrature(1.0 / m, 1.0), c, Influence::Constant)
                 .waves(kd, &along, 1.0);
-            assert!((waves.pressure.0 - p).abs() < 1e-4, "kδ = {kd}, m = {m}: {waves:?}");
-            assert!((waves.shear.0 - s).abs() < 1e-4, "kδ = {kd}, m = {m}: {waves:?}");
+            assert!(
+                (waves.pressure.0 - p).abs() < 1e-4,
+                "kδ = {kd}, m = {m}: {waves:?}"
+            );
+            assert!(
+                (waves.shear.0 - s).abs() < 1e-4,
+                "kδ = {kd}, m = {m}: {waves:?}"
+            );
             assert_eq!(waves.pressure.1, [1.0, 0.0]);
         }
-        for (kd, p, s) in [(1.0, 1.03879, 0.60478), (std::f64::consts::PI, 2.71464, 1.70586)] {
+        for (kd, p, s) in [
+            (1.0, 1.03879, 0.60478),
+            (std::f64::consts::PI, 2.71464, 1.70586),
+        ] {
             let m = continuum_bond_matrix(kd, &along, c, Influence::Constant, 1.0);
             let waves = bond_waves(m, 1.0);
-            assert!((waves.pressure.0 - p).abs() < 1e-4, "continuum kδ = {kd}: {waves:?}");
-            assert!((waves.shear.0 - s).abs() < 1e-4, "continuum kδ = {kd}: {waves:?}");
+            assert!(
+                (waves.pressure.0 - p).abs() < 1e-4,
+                "continuum kδ = {kd}: {waves:?}"
+            );
+            assert!(
+                (waves.shear.0 - s).abs() < 1e-4,
+                "continuum kδ = {kd}: {waves:?}"
+            );
         }
         // The local limit (4.110) with ν = 1/3: √(9E/8ρ) k and √(3E/8ρ) k; Table 4.2 N = 2.
         for kd in [1.0, std::f64::consts::PI] {
@@ -348,7 +382,10 @@ mod tests {
                 1.0,
             );
             let series = (9.0f64 / 8.0).sqrt() * small * (1.0 - small * small / 24.0).sqrt();
-            assert!((waves.pressure.0 / series - 1.0).abs() < 1e-8, "{waves:?} vs {series}");
+            assert!(
+                (waves.pressure.0 / series - 1.0).abs() < 1e-8,
+                "{waves:?} vs {series}"
+            );
         }
     }
 
@@ -361,11 +398,18 @@ mod tests {
             let m = lattice.matrix(1.7, &n);
             let w = bond_waves(m, 2.0);
             for (omega, g) in [w.pressure, w.shear] {
-                let mg = [m[0][0] * g[0] + m[0][1] * g[1], m[1][0] * g[0] + m[1][1] * g[1]];
+                let mg = [
+                    m[0][0] * g[0] + m[0][1] * g[1],
+                    m[1][0] * g[0] + m[1][1] * g[1],
+                ];
                 let lambda = 2.0 * omega * omega;
-                assert!((mg[0] - lambda * g[0]).abs() < 1e-12 && (mg[1] - lambda * g[1]).abs() < 1e-12);
+                assert!(
+                    (mg[0] - lambda * g[0]).abs() < 1e-12 && (mg[1] - lambda * g[1]).abs() < 1e-12
+                );
             }
-            assert!((w.pressure.1[0] * w.shear.1[0] + w.pressure.1[1] * w.shear.1[1]).abs() < 1e-15);
+            assert!(
+                (w.pressure.1[0] * w.shear.1[0] + w.pressure.1[1] * w.shear.1[1]).abs() < 1e-15
+            );
         }
     }
 }

@@ -86,7 +86,13 @@ fn fit_row<const D: usize>(
         .iter()
         .map(|&j| std::array::from_fn(|k| positions[j as usize][k] - xi[k]))
         .collect();
-    let factor = |m: &Mode<D>| if scaled { m.rate } else { Complex::new(1.0, 0.0) };
+    let factor = |m: &Mode<D>| {
+        if scaled {
+            m.rate
+        } else {
+            Complex::new(1.0, 0.0)
+        }
+    };
     let rows = local.len() * levels.len();
     let matrix = DMatrix::from_fn(rows, spec.modes.len(), |r, b| {
         let mode = &spec.modes[b];
@@ -232,6 +238,9 @@ mod tests {
         }
         let mut out = [0.0];
         layer.values(&[1.0, 1.0, 1.0], &[], &mut out);
-        assert!((out[0] - 1.0).abs() < 1e-3, "a constant field stays nearly constant");
+        assert!(
+            (out[0] - 1.0).abs() < 1e-3,
+            "a constant field stays nearly constant"
+        );
     }
 }

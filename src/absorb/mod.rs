@@ -45,7 +45,11 @@ pub fn layer_nodes<const D: usize>(
 
 /// The mode directions about an outward normal: diffusion's first quadrant of the frame
 /// turned by θ_n − π/4 ((4.22), (4.24)), the waves' θ_n + [−Δφ, Δφ] ((4.56)).
-fn directions<const D: usize>(normal: &[f64; D], spec: &AbsorbingSpec, wave: bool) -> Vec<[f64; D]> {
+fn directions<const D: usize>(
+    normal: &[f64; D],
+    spec: &AbsorbingSpec,
+    wave: bool,
+) -> Vec<[f64; D]> {
     if D == 1 {
         return vec![*normal];
     }
@@ -53,7 +57,10 @@ fn directions<const D: usize>(normal: &[f64; D], spec: &AbsorbingSpec, wave: boo
     let (start, span) = if wave {
         (theta - spec.spread, 2.0 * spec.spread)
     } else {
-        (theta - std::f64::consts::FRAC_PI_4, std::f64::consts::FRAC_PI_2)
+        (
+            theta - std::f64::consts::FRAC_PI_4,
+            std::f64::consts::FRAC_PI_2,
+        )
     };
     let n = spec.directions;
     (0..n)

@@ -98,7 +98,13 @@ pub(super) fn pulses(p: &Preset, ctx: &ErrorContext, dim: usize) -> Result<Vec<P
         .collect()
 }
 
-fn in_range(ctx: &ErrorContext, field: &str, v: f64, ok: bool, range: &str) -> Result<f64, SceneError> {
+fn in_range(
+    ctx: &ErrorContext,
+    field: &str,
+    v: f64,
+    ok: bool,
+    range: &str,
+) -> Result<f64, SceneError> {
     if ok && v.is_finite() {
         Ok(v)
     } else {
@@ -141,7 +147,11 @@ pub(super) fn absorbing(
         ));
     }
     let width = match table.width {
-        Some(m) => positive(ctx, "absorbing.width", length(ctx, "absorbing.width", m, spacing, horizon)?)?,
+        Some(m) => positive(
+            ctx,
+            "absorbing.width",
+            length(ctx, "absorbing.width", m, spacing, horizon)?,
+        )?,
         None => horizon,
     };
     let cloud_radius = match table.cloud_radius {
@@ -171,8 +181,18 @@ pub(super) fn absorbing(
         }
     };
     // 2D diffusion: n_b = 55 = 5 × 11 (thesis §4.1.5 [inferred]); waves: ≥ 10 subdivisions.
-    let wave_numbers = count("absorbing.wave_numbers", table.wave_numbers, if dim == 1 || wave { 20 } else { 5 }, 200)?;
-    let directions = count("absorbing.directions", table.directions, if dim == 1 { 1 } else { 11 }, 90)?;
+    let wave_numbers = count(
+        "absorbing.wave_numbers",
+        table.wave_numbers,
+        if dim == 1 || wave { 20 } else { 5 },
+        200,
+    )?;
+    let directions = count(
+        "absorbing.directions",
+        table.directions,
+        if dim == 1 { 1 } else { 11 },
+        90,
+    )?;
     if dim == 1 && directions != 1 {
         return Err(ctx.error(
             "absorbing.directions",
@@ -188,10 +208,14 @@ pub(super) fn absorbing(
     if wave && max_wave_number > nyquist * (1.0 + 1e-12) {
         return Err(ctx.error(
             "absorbing.max_wave_number",
-            format!("Δk must be in (0, π/Δx] = (0, {nyquist:.4e}] 1/m (4.83), got {max_wave_number}"),
+            format!(
+                "Δk must be in (0, π/Δx] = (0, {nyquist:.4e}] 1/m (4.83), got {max_wave_number}"
+            ),
         ));
     }
-    let spread_degrees = table.spread_degrees.unwrap_or(if dim == 1 { 0.0 } else { 45.0 });
+    let spread_degrees = table
+        .spread_degrees
+        .unwrap_or(if dim == 1 { 0.0 } else { 45.0 });
     let spread = in_range(
         ctx,
         "absorbing.spread_degrees",
@@ -201,7 +225,13 @@ pub(super) fn absorbing(
     )?
     .to_radians();
     let cutoff = table.cutoff.unwrap_or(1e-10);
-    let cutoff = in_range(ctx, "absorbing.cutoff", cutoff, (0.0..1.0).contains(&cutoff), "[0, 1)")?;
+    let cutoff = in_range(
+        ctx,
+        "absorbing.cutoff",
+        cutoff,
+        (0.0..1.0).contains(&cutoff),
+        "[0, 1)",
+    )?;
     let max_norm = positive(ctx, "absorbing.max_norm", table.max_norm.unwrap_or(2.0))?;
     let max_condition = table.max_condition.unwrap_or(1e12);
     let max_condition = in_range(
@@ -258,7 +288,10 @@ mod tests {
         ];
         for (dim, p, w, kappa) in cases {
             let got = 1.0 / second_moment(dim, p, w, d);
-            assert!((got / kappa - 1.0).abs() < 1e-12, "{dim}D p = {p} {w:?}: {got} vs {kappa}");
+            assert!(
+                (got / kappa - 1.0).abs() < 1e-12,
+                "{dim}D p = {p} {w:?}: {got} vs {kappa}"
+            );
         }
     }
 }

@@ -5,7 +5,10 @@ const PRESETS: &[(&str, &str)] = &[
         "abc-diffusion-1d",
         include_str!("../../presets/abc-diffusion-1d.toml"),
     ),
-    ("abc-wave-1d", include_str!("../../presets/abc-wave-1d.toml")),
+    (
+        "abc-wave-1d",
+        include_str!("../../presets/abc-wave-1d.toml"),
+    ),
     (
         "corrosion-1d",
         include_str!("../../presets/corrosion-1d.toml"),

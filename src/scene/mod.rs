@@ -1,12 +1,12 @@
 //! Scenes: TOML presets (schema, units, variants) validated into a plain `Scene` in SI units.
 
+mod absorbing;
 pub mod builtin;
 pub mod error;
 pub mod geometry;
 pub mod reference;
 pub mod schema;
 pub mod units;
-mod absorbing;
 mod validate;
 pub use absorbing::second_moment;
 
@@ -178,7 +178,11 @@ pub struct Pulse {
 
 impl Pulse {
     pub fn value(&self, x: &[f64]) -> f64 {
-        let r2: f64 = x.iter().zip(&self.center).map(|(a, b)| (a - b) * (a - b)).sum();
+        let r2: f64 = x
+            .iter()
+            .zip(&self.center)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum();
         self.amplitude * (-self.decay * r2).exp()
     }
 }

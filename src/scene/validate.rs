@@ -196,7 +196,8 @@ pub(super) fn validate(
         perturbation,
         [spacing, horizon],
     )?;
-    if physics == Physics::ScalarWave && (scheme.kind != SchemeKind::Standard || multigrid.is_some())
+    if physics == Physics::ScalarWave
+        && (scheme.kind != SchemeKind::Standard || multigrid.is_some())
     {
         return Err(ctx.error(
             "discretization.scheme",
@@ -217,7 +218,10 @@ pub(super) fn validate(
     }
     let initial_pulses = super::absorbing::pulses(p, ctx, dim)?;
     if !initial_pulses.is_empty()
-        && !matches!(physics, Physics::Diffusion | Physics::Corrosion | Physics::ScalarWave)
+        && !matches!(
+            physics,
+            Physics::Diffusion | Physics::Corrosion | Physics::ScalarWave
+        )
     {
         return Err(ctx.error(
             "initial.pulse",

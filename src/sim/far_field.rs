@@ -65,7 +65,9 @@ impl<const D: usize> Absorber<D> {
             _ => ScalarFarField::Diffusion { diffusivity: local },
         };
         let mut is_absorbing = vec![false; n];
-        nodes.iter().for_each(|(i, _)| is_absorbing[*i as usize] = true);
+        nodes
+            .iter()
+            .for_each(|(i, _)| is_absorbing[*i as usize] = true);
         let count = nodes.len();
         Absorber {
             spec,
@@ -138,8 +140,18 @@ impl<const D: usize> Absorber<D> {
                 "absorbing layer: {} nodes, {} modes per node, clouds of {}–{} nodes",
                 self.layer.nodes.len(),
                 norm.modes,
-                self.layer.reports.iter().map(|r| r.cloud).min().unwrap_or(0),
-                self.layer.reports.iter().map(|r| r.cloud).max().unwrap_or(0),
+                self.layer
+                    .reports
+                    .iter()
+                    .map(|r| r.cloud)
+                    .min()
+                    .unwrap_or(0),
+                self.layer
+                    .reports
+                    .iter()
+                    .map(|r| r.cloud)
+                    .max()
+                    .unwrap_or(0),
             ),
             format!(
                 "absorbing layer: max ‖Re V‖ = {:.4} at node {} ({} above the limit {}); max \
@@ -202,19 +214,21 @@ pub fn near_field_energy(
             continue;
         }
         let u = field[i];
-        sum += 0.5 * volumes[i] * match velocity {
-            None => u * u,
-            Some(v) => {
-                let range = operator.offsets[r]..operator.offsets[r + 1];
-                let potential: f64 = operator.columns[range.clone()]
-                    .iter()
-                    .zip(&operator.weights[range])
-                    .filter(|&(&j, _)| j as usize != i)
-                    .map(|(&j, w)| w * (field[j as usize] - u).powi(2))
-                    .sum();
-                v[i] * v[i] + 0.5 * potential
-            }
-        };
+        sum += 0.5
+            * volumes[i]
+            * match velocity {
+                None => u * u,
+                Some(v) => {
+                    let range = operator.offsets[r]..operator.offsets[r + 1];
+                    let potential: f64 = operator.columns[range.clone()]
+                        .iter()
+                        .zip(&operator.weights[range])
+                        .filter(|&(&j, _)| j as usize != i)
+                        .map(|(&j, w)| w * (field[j as usize] - u).powi(2))
+                        .sum();
+                    v[i] * v[i] + 0.5 * potential
+                }
+            };
     }
     sum
 }

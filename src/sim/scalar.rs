@@ -165,8 +165,7 @@ fn initial_field<const D: usize>(
                 .rev()
                 .find(|(region, _)| region.contains(x, eps))
                 .map(|(_, v)| *v);
-            let base =
-                set.unwrap_or_else(|| scene.reference.map_or(0.0, |r| r.value(x, 0.0)));
+            let base = set.unwrap_or_else(|| scene.reference.map_or(0.0, |r| r.value(x, 0.0)));
             base + scene.initial_pulses.iter().map(|p| p.value(x)).sum::<f64>()
         })
         .collect();
@@ -445,7 +444,9 @@ impl<const D: usize> ScalarSimulation<D> {
 
     /// The absorbing layer's nodes, in the layer's order.
     pub fn absorbing_nodes(&self) -> &[u32] {
-        self.absorber.as_ref().map_or(&[], |a| a.layer.nodes.as_slice())
+        self.absorber
+            .as_ref()
+            .map_or(&[], |a| a.layer.nodes.as_slice())
     }
 
     /// `check`'s lines on the absorbing layer (its ‖V‖ and cond(M)).
@@ -585,6 +586,7 @@ impl<const D: usize> ScalarSimulation<D> {
         };
         rates
             .par_iter_mut()
+            .with_min_len(crate::scheme::MIN_ROWS_PER_TASK)
             .enumerate()
             .map(|(r, rate)| {
                 let i = rows[r] as usize;
@@ -938,5 +940,9 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
 
     fn relative_error(&self) -> Option<f64> {
         ScalarSimulation::relative_error(self)
+    }
+
+    fn check_notes(&self) -> Vec<String> {
+        self.absorbing_report()
     }
 }

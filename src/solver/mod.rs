@@ -174,4 +174,9 @@ pub trait Stepper: Send {
     fn relative_error(&self) -> Option<f64> {
         None
     }
+
+    /// Further lines for `check` (an absorbing layer's conditioning).
+    fn check_notes(&self) -> Vec<String> {
+        Vec::new()
+    }
 }

@@ -3,6 +3,7 @@
 
 mod common;
 
+mod absorbing;
 mod architecture;
 mod checkpoint;
 mod cli;
