@@ -2,12 +2,20 @@
 
 const PRESETS: &[(&str, &str)] = &[
     (
+        "abc-corrosion-2d",
+        include_str!("../../presets/abc-corrosion-2d.toml"),
+    ),
+    (
         "abc-diffusion-1d",
         include_str!("../../presets/abc-diffusion-1d.toml"),
     ),
     (
         "abc-wave-1d",
         include_str!("../../presets/abc-wave-1d.toml"),
+    ),
+    (
+        "abc-wave-2d",
+        include_str!("../../presets/abc-wave-2d.toml"),
     ),
     (
         "corrosion-1d",

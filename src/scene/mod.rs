@@ -70,6 +70,8 @@ pub struct Scene {
     pub output_every: Option<u64>,
     pub crack_angles: Vec<CrackAngleSpec>,
     pub energy_circles: Vec<EnergyCircleSpec>,
+    /// Scalar-field probes: (name, point).
+    pub probes: Vec<(String, Vec<f64>)>,
     pub damage_counts: Vec<DamageCountSpec>,
 }
 

@@ -529,6 +529,17 @@ pub struct MetricsSpec {
     pub energy_circle: Vec<EnergyCircleSpec>,
     #[serde(default)]
     pub damage_count: Vec<DamageCountSpec>,
+    /// Scalar fields: the value and energy density at the node nearest `point`, logged as
+    /// `probe/<name>/{value,energy_density}` (a pulse passing, then what reflects).
+    #[serde(default)]
+    pub probe: Vec<ProbeTable>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeTable {
+    pub name: String,
+    pub point: Point,
 }
 
 /// Kinetic plus strain energy of the (active) nodes within `radius` of `center`, logged as

@@ -316,6 +316,25 @@ pub(super) fn validate(
         })
         .collect::<Result<Vec<_>, _>>()
         .map_err(|m| ctx.from_path_message(&m))?;
+    let probes = p
+        .metrics
+        .probe
+        .iter()
+        .enumerate()
+        .map(|(i, q)| {
+            Ok((
+                q.name.clone(),
+                point(&q.point, dim, &format!("metrics.probe[{i}].point"))?,
+            ))
+        })
+        .collect::<Result<Vec<_>, String>>()
+        .map_err(|m| ctx.from_path_message(&m))?;
+    if !probes.is_empty() && matches!(physics, Physics::Dynamics) {
+        return Err(ctx.error(
+            "metrics.probe",
+            "probes read a scalar field: physics = \"diffusion\", \"corrosion\", \"static\" or \"scalar-wave\"",
+        ));
+    }
     let energy_circles = p
         .metrics
         .energy_circle
@@ -388,6 +407,7 @@ pub(super) fn validate(
         output_every: p.output.every,
         crack_angles,
         energy_circles,
+        probes,
         damage_counts,
     })
 }
@@ -849,9 +869,13 @@ fn boundary_layer(
                  or a velocity, displacement or body force"
             ));
         }
-        if !matches!(physics, Physics::Diffusion | Physics::Corrosion) {
+        if !matches!(
+            physics,
+            Physics::Diffusion | Physics::Corrosion | Physics::ScalarWave
+        ) {
             return Err(format!(
-                "{path}.hold_value: only diffusion and corrosion scenes hold a field value"
+                "{path}.hold_value: only diffusion, corrosion and scalar-wave scenes hold a \
+                 field value"
             ));
         }
         if !v.si().is_finite() {

@@ -197,6 +197,68 @@ impl Wave {
     }
 }
 
+/// A probe: its name and the node nearest its point.
+pub struct Probe {
+    pub name: String,
+    pub node: usize,
+    /// The operator row of the node (None if it is held or in the layer).
+    pub row: Option<usize>,
+}
+
+impl Probe {
+    pub fn resolve<const D: usize>(
+        probes: &[(String, Vec<f64>)],
+        positions: &[[f64; D]],
+        operator: &ScalarOperator,
+    ) -> Vec<Probe> {
+        probes
+            .iter()
+            .map(|(name, p)| {
+                let distance =
+                    |x: &[f64; D]| x.iter().zip(p).map(|(a, b)| (a - b) * (a - b)).sum::<f64>();
+                let node = (0..positions.len())
+                    .min_by(|&a, &b| distance(&positions[a]).total_cmp(&distance(&positions[b])))
+                    .unwrap_or(0);
+                let row = operator.rows.iter().position(|&i| i as usize == node);
+                Probe {
+                    name: name.clone(),
+                    node,
+                    row,
+                }
+            })
+            .collect()
+    }
+
+    /// The field and its energy density ½ u̇² + ¼ Σ_j w (u_j − u_i)² (waves) or ½ C²
+    /// (diffusion) at the probe's node.
+    pub fn scalars(
+        &self,
+        operator: &ScalarOperator,
+        field: &[f64],
+        velocity: Option<&[f64]>,
+    ) -> [(String, f64); 2] {
+        let u = field[self.node];
+        let density = match (velocity, self.row) {
+            (Some(v), Some(r)) => {
+                let range = operator.offsets[r]..operator.offsets[r + 1];
+                let potential: f64 = operator.columns[range.clone()]
+                    .iter()
+                    .zip(&operator.weights[range])
+                    .filter(|&(&j, _)| j as usize != self.node)
+                    .map(|(&j, w)| w * (field[j as usize] - u).powi(2))
+                    .sum();
+                0.5 * v[self.node] * v[self.node] + 0.25 * potential
+            }
+            (Some(v), None) => 0.5 * v[self.node] * v[self.node],
+            (None, _) => 0.5 * u * u,
+        };
+        [
+            (format!("probe/{}/value", self.name), u),
+            (format!("probe/{}/energy_density", self.name), density),
+        ]
+    }
+}
+
 /// The energy in the near field (rows of `operator` not in the layer, weighted by `volumes`):
 /// diffusion Π = ½ Σ C² V (seed-thesis-ch4-5 erratum 13); a wave
 /// ½ Σ V (u̇² + ½ Σ_j w_ij (u_j − u_i)²) (the discrete form of (4.99)).

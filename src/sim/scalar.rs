@@ -8,7 +8,7 @@
 
 use rayon::prelude::*;
 
-use super::far_field::{self, Absorber, Wave};
+use super::far_field::{self, Absorber, Probe, Wave};
 use crate::adapt::fixed::{self, FixedHybrid};
 use crate::adapt::masks::{GridClass, Phase, SchemeClass};
 use crate::adapt::multigrid::MultiGrid;
@@ -73,6 +73,7 @@ pub struct ScalarSimulation<const D: usize> {
     absorber: Option<Absorber<D>>,
     /// Scalar-wave scenes: the velocity state of (4.62).
     wave: Option<Wave>,
+    probes: Vec<Probe>,
     /// Each node's volume where it is active (0 on fictitious nodes): Σ C V over these is the
     /// total.
     active_volumes: Vec<f64>,
@@ -376,6 +377,7 @@ impl<const D: usize> ScalarSimulation<D> {
             a.ensure_fitted(run.clock.dt(), positions, &discretization.families);
             a
         });
+        let probes = Probe::resolve(&scene.probes, positions, &operator);
         let wave = scene
             .wave
             .map(|w| Wave::new(w.damping, &field, operator.rows.len()));
@@ -401,6 +403,7 @@ impl<const D: usize> ScalarSimulation<D> {
             multigrid,
             absorber,
             wave,
+            probes,
             active_volumes,
             run,
             amplitude,
@@ -829,6 +832,10 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
                 values: error,
                 range: (-range, range),
             });
+        }
+        for p in &self.probes {
+            let velocity = self.wave.as_ref().map(|w| w.velocity.as_slice());
+            scalars.extend(p.scalars(&self.operator, self.field(), velocity));
         }
         if let Some(w) = &self.wave {
             let top = w.velocity.iter().fold(0.0, |a: f64, v| a.max(v.abs()));

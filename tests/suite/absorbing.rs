@@ -19,6 +19,12 @@ struct Comparison {
     peaks: Vec<f64>,
     /// The near-field energy at every check.
     energies: Vec<f64>,
+    /// (truncated, reference) ½ Σ u² Δxᴰ over the truncated scene's nodes at every check.
+    squares: Vec<(f64, f64)>,
+    /// Scenes with a probe `p`: (truncated, reference) value there at every check.
+    probes: Vec<(f64, f64)>,
+    /// Corrosion: (truncated, reference) relative volume loss at every check.
+    volume_losses: Vec<(f64, f64)>,
     /// The run stopped with a divergence error (its error is then ∞).
     diverged: bool,
 }
@@ -34,6 +40,27 @@ impl Comparison {
         self.errors[k] / self.peaks[k]
     }
 
+    /// max_t |Π(t) − Π_ref(t)| / Π_ref(0) with Π = ½ Σ u² over the near field (thesis (4.35),
+    /// erratum 13), taking the first check as t = 0.
+    fn energy_gap(&self) -> f64 {
+        let first = self.squares.first().map_or(1.0, |s| s.1);
+        self.squares
+            .iter()
+            .fold(0.0, |a: f64, (x, y)| a.max((x - y).abs() / first))
+    }
+
+    /// The largest difference of the relative volume loss from the reference's.
+    fn volume_loss_gap(&self) -> f64 {
+        self.volume_losses
+            .iter()
+            .fold(0.0, |a: f64, (x, y)| a.max((x - y).abs()))
+    }
+
+    /// Σ (u − u_ref)² over the checks at the probe: what reflects back to it.
+    fn reflected(&self) -> f64 {
+        self.probes.iter().map(|(a, b)| (a - b) * (a - b)).sum()
+    }
+
     /// The largest absolute error over the whole run.
     fn max_error(&self) -> f64 {
         self.errors.iter().fold(0.0, |a: f64, &e| a.max(e))
@@ -41,25 +68,27 @@ impl Comparison {
 }
 
 /// Steps the truncated scenes and the reference together, comparing every `every` steps.
-fn lockstep(truncated: &[Scene], reference: &Scene, every: u64) -> Vec<Comparison> {
-    let mut far = ScalarSimulation::<1>::new(reference).unwrap();
-    let origin = far.positions()[0][0];
-    let mut runs: Vec<(ScalarSimulation<1>, Vec<usize>, Comparison)> = truncated
+fn lockstep<const D: usize>(truncated: &[Scene], reference: &Scene, every: u64) -> Vec<Comparison> {
+    let mut far = ScalarSimulation::<D>::new(reference).unwrap();
+    let origin = far.positions()[0];
+    let dx = reference.spacing;
+    let key = |x: &[f64; D]| -> [i64; D] {
+        std::array::from_fn(|k| ((x[k] - origin[k]) / dx).round() as i64)
+    };
+    let index: std::collections::HashMap<[i64; D], usize> = far
+        .positions()
+        .iter()
+        .enumerate()
+        .map(|(i, x)| (key(x), i))
+        .collect();
+    let mut runs: Vec<(ScalarSimulation<D>, Vec<usize>, Comparison)> = truncated
         .iter()
         .map(|t| {
-            let near = ScalarSimulation::<1>::new(t).unwrap();
-            let dx = t.spacing;
+            let near = ScalarSimulation::<D>::new(t).unwrap();
             let map = near
                 .positions()
                 .iter()
-                .map(|x| {
-                    let k = ((x[0] - origin) / dx).round();
-                    assert!(
-                        (origin + k * dx - x[0]).abs() < 1e-9 * dx,
-                        "the lattices coincide"
-                    );
-                    k as usize
-                })
+                .map(|x| *index.get(&key(x)).expect("the lattices coincide"))
                 .collect();
             assert_eq!(near.info().total_steps, far.info().total_steps);
             let c = Comparison {
@@ -67,6 +96,9 @@ fn lockstep(truncated: &[Scene], reference: &Scene, every: u64) -> Vec<Compariso
                 errors: Vec::new(),
                 peaks: Vec::new(),
                 energies: Vec::new(),
+                volume_losses: Vec::new(),
+                probes: Vec::new(),
+                squares: Vec::new(),
                 diverged: false,
             };
             (near, map, c)
@@ -75,6 +107,14 @@ fn lockstep(truncated: &[Scene], reference: &Scene, every: u64) -> Vec<Compariso
     let steps = far.info().total_steps;
     for n in 1..=steps {
         far.step().unwrap();
+        let check = n % every == 0 || n == steps;
+        let (far_loss, far_probe) = match check {
+            true => {
+                let f = far.frame();
+                (f.scalar("corrosion/volume_loss"), f.scalar("probe/p/value"))
+            }
+            false => (None, None),
+        };
         for (near, map, c) in runs.iter_mut() {
             if c.diverged {
                 continue;
@@ -84,18 +124,29 @@ fn lockstep(truncated: &[Scene], reference: &Scene, every: u64) -> Vec<Compariso
                 c.errors.push(f64::INFINITY);
                 continue;
             }
-            if n % every == 0 || n == steps {
+            if check {
                 let (u, r) = (near.field(), far.field());
                 let (mut e, mut p) = (0.0f64, 0.0f64);
+                let (mut su, mut sr) = (0.0, 0.0);
                 for (a, &k) in map.iter().enumerate() {
                     e = e.max((u[a] - r[k]).abs());
                     p = p.max(r[k].abs());
+                    su += 0.5 * u[a] * u[a];
+                    sr += 0.5 * r[k] * r[k];
                 }
+                c.squares.push((su, sr));
                 c.times.push(near.run().clock.time());
                 c.errors.push(e);
                 c.peaks.push(p);
+                let f = near.frame();
                 c.energies
-                    .push(near.frame().scalar("energy/near_field").unwrap_or(f64::NAN));
+                    .push(f.scalar("energy/near_field").unwrap_or(f64::NAN));
+                if let (Some(a), Some(b)) = (f.scalar("corrosion/volume_loss"), far_loss) {
+                    c.volume_losses.push((a, b));
+                }
+                if let (Some(a), Some(b)) = (f.scalar("probe/p/value"), far_probe) {
+                    c.probes.push((a, b));
+                }
             }
         }
     }
@@ -107,7 +158,7 @@ fn lockstep(truncated: &[Scene], reference: &Scene, every: u64) -> Vec<Compariso
 #[test]
 fn diffusion_leaves_the_near_field_through_the_layer() {
     let reference = scene("abc-diffusion-1d", Some("reference"), &[]);
-    let runs = lockstep(
+    let runs = lockstep::<1>(
         &[
             scene("abc-diffusion-1d", None, &[]),
             scene("abc-diffusion-1d", Some("neumann"), &[]),
@@ -143,7 +194,7 @@ fn wave_mode_count_saturates() {
         .collect();
     scenes.push(scene("abc-wave-1d", None, &[]));
     scenes.push(scene("abc-wave-1d", None, &["absorbing.wave_numbers=8"]));
-    let runs = lockstep(&scenes, &reference, 100);
+    let runs = lockstep::<1>(&scenes, &reference, 100);
     let error = |k: usize| runs[k].max_error();
     for (k, name) in [
         "free ends",
@@ -179,7 +230,7 @@ fn dispersive_wave_leaves_through_the_layer() {
         Some("m25-reference"),
         &["geometry.box.min=[-32.0]", "geometry.box.max=[32.0]"],
     );
-    let runs = lockstep(
+    let runs = lockstep::<1>(
         &[
             scene("abc-wave-1d", Some("m25"), &[]),
             scene("abc-wave-1d", Some("m25-free"), &[]),
@@ -195,6 +246,97 @@ fn dispersive_wave_leaves_through_the_layer() {
     );
     assert!(abc.max_error() <= 1e-2);
     assert!(free.max_error() >= 0.5);
+}
+
+/// S2 small (Δx = 0.08; the reference disc r ≤ 6, which the solute does not reach by
+/// t = 0.085): the truncated run's relative volume loss stays within 2 % of the initial solid
+/// volume of the reference's at every check (it does on Neumann ends too: the letters are gone
+/// before the solute reaches r = 2); the near-field energy Π = ½ ∫ C² never rises, and its
+/// gap ΔΠ/Π0 (4.35) to the reference's stays a third or less of the Neumann truncation's (the
+/// thesis's Fig. 4.15 shows the Neumann gap growing).
+#[test]
+fn corrosion_volume_loss_matches_the_large_domain() {
+    let reference = scene("abc-corrosion-2d", Some("small-reference"), &[]);
+    let runs = lockstep::<2>(
+        &[
+            scene("abc-corrosion-2d", Some("small"), &[]),
+            scene("abc-corrosion-2d", Some("small-neumann"), &[]),
+        ],
+        &reference,
+        161,
+    );
+    let (abc, neumann) = (&runs[0], &runs[1]);
+    let last = |c: &Comparison| c.volume_losses.last().copied().unwrap();
+    eprintln!(
+        "S2 small: volume-loss gap {:.3e} (Neumann {:.3e}); ΔΠ/Π0 {:.3e} (Neumann {:.3e}); final \
+         volume loss {:?} (Neumann {:?}); max |C − C_ref| {:.3e} (Neumann {:.3e}); near-field \
+         energy {:.3e} → {:.3e}",
+        abc.volume_loss_gap(),
+        neumann.volume_loss_gap(),
+        abc.energy_gap(),
+        neumann.energy_gap(),
+        last(abc),
+        last(neumann),
+        abc.max_error(),
+        neumann.max_error(),
+        abc.energies[0],
+        abc.energies.last().unwrap(),
+    );
+    assert!(abc.volume_loss_gap() <= 0.02);
+    assert!(abc.energy_gap() <= neumann.energy_gap() / 3.0);
+    // Monotone decay of Π = ½ ∫ C² over the near field from its peak on.
+    let peak = abc
+        .energies
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .unwrap()
+        .0;
+    assert!(
+        abc.energies[peak..]
+            .windows(2)
+            .all(|w| w[1] <= w[0] * (1.0 + 1e-12))
+    );
+}
+
+/// S7 scaled (m = 3): the pulse leaves the disc r ≤ 26; against the same model on r ≤ 40 the
+/// signal reflected to the probe (20, 10), Σ (u − u_ref)² over the checks, stays below 10 % of
+/// a fixed boundary's, the near-field energy never rises once the pulse reaches the layer
+/// (t ≥ 24), and over the near field the discrete modes ("Proposed-A") stay closer to the
+/// reference than the local ones ("Proposed-B"; thesis Figs. 4.31–4.32).
+#[test]
+fn wave_2d_leaves_the_disc_through_the_layer() {
+    let reference = scene("abc-wave-2d", Some("scaled-reference"), &[]);
+    let variants = ["scaled", "scaled-local", "scaled-fixed", "scaled-free"];
+    let scenes: Vec<Scene> = variants
+        .iter()
+        .map(|v| scene("abc-wave-2d", Some(v), &[]))
+        .collect();
+    let runs = lockstep::<2>(&scenes, &reference, 10);
+    for (v, c) in variants.iter().zip(&runs) {
+        eprintln!(
+            "S7 {v}: max |u − u_ref| = {:.3e}, reflected Σ(u − u_ref)² at the probe = {:.3e}, \
+             near-field energy {:.3e} → {:.3e}{}",
+            c.max_error(),
+            c.reflected(),
+            c.energies[0],
+            c.energies.last().unwrap(),
+            if c.diverged { " (diverged)" } else { "" }
+        );
+    }
+    let (a, b, fixed) = (&runs[0], &runs[1], &runs[2]);
+    assert!(!a.diverged && !b.diverged);
+    assert!(a.reflected() < 0.1 * fixed.reflected());
+    assert!(a.max_error() < b.max_error());
+    let from = a.times.iter().position(|&t| t >= 24.0).unwrap();
+    let rising = a.energies[from..]
+        .windows(2)
+        .filter(|w| w[1] > w[0] * (1.0 + 1e-12))
+        .count();
+    assert_eq!(
+        rising, 0,
+        "the near-field energy rose at {rising} checks after t = 24"
+    );
 }
 
 /// The one-step map of a linear scalar simulation, column by column: each state component set
@@ -262,4 +404,42 @@ fn absorbing_layers_are_stable_for_any_number_of_steps() {
     assert!((neumann - 1.0).abs() < 1e-12, "{neumann}");
     assert!(wave.powi(100_000) <= 1.1, "{wave}");
     assert!(two > 1.0 + 1e-6, "{two}");
+}
+
+/// Long runs stay bounded (the issue's 10⁵ steps), S4 to t = 100: the near-field energy at the
+/// end is below its value when the pulse has left (t = 50) and never exceeds the initial
+/// energy. (S7 scaled does not hold this yet: its residual energy grows again after t ≈ 200 and
+/// passes the initial energy before 10⁵ steps; see docs/results.md.) Ignored in CI; run with
+/// `cargo test --release -- --ignored long_runs`.
+#[test]
+#[ignore]
+fn long_runs_stay_bounded() {
+    let s = scene("abc-wave-1d", None, &["time.end=\"100000 steps\""]);
+    let energies = energy_history::<1>(&s);
+    let initial = energies[0].1;
+    let at_50 = energies.iter().find(|(t, _)| *t >= 50.0).unwrap().1;
+    let last = energies.last().unwrap().1;
+    let top = energies.iter().fold(0.0f64, |a, e| a.max(e.1));
+    eprintln!(
+        "S4: energy {initial:.3e} → {at_50:.3e} (t = 50) → {last:.3e} (t = 100); max {top:.3e}"
+    );
+    assert!(last <= at_50 && top <= initial * (1.0 + 1e-9));
+}
+
+fn energy_history<const D: usize>(s: &Scene) -> Vec<(f64, f64)> {
+    let mut sim = ScalarSimulation::<D>::new(s).unwrap();
+    let mut out = vec![(0.0, sim.frame().scalar("energy/near_field").unwrap())];
+    let mut n = 0u64;
+    while !sim.run().clock.done() {
+        if sim.step().is_err() {
+            out.push((f64::INFINITY, f64::INFINITY));
+            break;
+        }
+        n += 1;
+        if n % 1000 == 0 {
+            let f = sim.frame();
+            out.push((f.time, f.scalar("energy/near_field").unwrap()));
+        }
+    }
+    out
 }
