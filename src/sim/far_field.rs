@@ -240,14 +240,7 @@ impl Probe {
         let u = field[self.node];
         let density = match (velocity, self.row) {
             (Some(v), Some(r)) => {
-                let range = operator.offsets[r]..operator.offsets[r + 1];
-                let potential: f64 = operator.columns[range.clone()]
-                    .iter()
-                    .zip(&operator.weights[range])
-                    .filter(|&(&j, _)| j as usize != self.node)
-                    .map(|(&j, w)| w * (field[j as usize] - u).powi(2))
-                    .sum();
-                0.5 * v[self.node] * v[self.node] + 0.25 * potential
+                0.5 * v[self.node] * v[self.node] + 0.25 * bond_squares(operator, r, field)
             }
             (Some(v), None) => 0.5 * v[self.node] * v[self.node],
             (None, _) => 0.5 * u * u,
@@ -257,6 +250,18 @@ impl Probe {
             (format!("probe/{}/energy_density", self.name), density),
         ]
     }
+}
+
+/// Σ_j w_ij (u_j − u_i)² over row `r`'s off-diagonal entries (i its node).
+fn bond_squares(operator: &ScalarOperator, r: usize, field: &[f64]) -> f64 {
+    let i = operator.rows[r];
+    let range = operator.offsets[r]..operator.offsets[r + 1];
+    operator.columns[range.clone()]
+        .iter()
+        .zip(&operator.weights[range])
+        .filter(|&(&j, _)| j != i)
+        .map(|(&j, w)| w * (field[j as usize] - field[i as usize]).powi(2))
+        .sum()
 }
 
 /// The energy in the near field (rows of `operator` not in the layer, weighted by `volumes`):
@@ -280,16 +285,7 @@ pub fn near_field_energy(
             * volumes[i]
             * match velocity {
                 None => u * u,
-                Some(v) => {
-                    let range = operator.offsets[r]..operator.offsets[r + 1];
-                    let potential: f64 = operator.columns[range.clone()]
-                        .iter()
-                        .zip(&operator.weights[range])
-                        .filter(|&(&j, _)| j as usize != i)
-                        .map(|(&j, w)| w * (field[j as usize] - u).powi(2))
-                        .sum();
-                    v[i] * v[i] + 0.5 * potential
-                }
+                Some(v) => v[i] * v[i] + 0.5 * bond_squares(operator, r, field),
             };
     }
     sum

@@ -194,7 +194,8 @@ fn euler_stable_step(
     let gershgorin = (kappa_scale * operator.max_absolute_row_sum())
         .max(hybrid.map_or(0.0, |h| h.wls.max_absolute_row_sum()));
     // A wave's ü = L u: velocity-Verlet's 2/√λ_max with λ_max the spectral radius of −L.
-    let (limit, step): (fn(f64) -> f64, fn(f64) -> f64) = if wave {
+    type Bound = fn(f64) -> f64;
+    let (limit, step): (Bound, Bound) = if wave {
         (stability::verlet_limit, stability::verlet_step)
     } else {
         (stability::euler_limit, stability::euler_step)

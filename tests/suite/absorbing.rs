@@ -436,7 +436,7 @@ fn energy_history<const D: usize>(s: &Scene) -> Vec<(f64, f64)> {
             break;
         }
         n += 1;
-        if n % 1000 == 0 {
+        if n.is_multiple_of(1000) {
             let f = sim.frame();
             out.push((f.time, f.scalar("energy/near_field").unwrap()));
         }
