@@ -30,11 +30,10 @@ use crate::solver::{
 
 /// A static solve's one stage.
 const STATIC_STAGES: &[&str] = &["solve"];
-/// Forward Euler's stages, in the order `step()` runs them (`hold`: held values and a
-/// multi-grid scene's fictitious values).
+/// The stages of forward Euler and of a wave's damped velocity-Verlet, in the order `step()`
+/// runs them (`rates`: L u; `update`: the new values, for Verlet both half steps; `hold`: held
+/// values, a multi-grid scene's fictitious values and the absorbing layer).
 const EULER_STAGES: &[&str] = &["rates", "update", "hold", "phase_change"];
-/// Damped velocity-Verlet's stages (scalar waves, (4.62)); `hold` as above.
-const VERLET_STAGES: &[&str] = &["rates", "update", "hold", "phase_change"];
 const RATES: usize = 0;
 const UPDATE: usize = 1;
 const HOLD: usize = 2;
@@ -362,7 +361,7 @@ impl<const D: usize> ScalarSimulation<D> {
             Physics::Static => (StableStep::NONE, STATIC_STAGES),
             Physics::ScalarWave => (
                 euler_stable_step(scene, n, &operator, 1.0, None),
-                VERLET_STAGES,
+                EULER_STAGES,
             ),
             _ => {
                 // The unit operator times the largest bond κ bounds the corrosion operator's
@@ -685,7 +684,7 @@ impl<const D: usize> ScalarSimulation<D> {
             a.overwrite_rates(&mut w.velocity);
         }
         w.forces_fresh = true;
-        lap.charge(&mut self.run.stages, HOLD);
+        lap.charge(&mut self.run.stages, UPDATE);
         let field = self.discretization.nodes.fields.get(self.field);
         field.iter().fold(0.0, |m: f64, v| m.max(v.abs()))
     }
