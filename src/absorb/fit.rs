@@ -19,6 +19,17 @@ pub struct Fit {
 
 /// ψ M⁺ for `matrix` (cloud values × modes) and the mode row `psi` (one entry per mode).
 pub fn min_norm_row(matrix: DMatrix<Complex<f64>>, psi: &[Complex<f64>], cutoff: f64) -> Fit {
+    let mut fits = min_norm_rows(matrix, &[psi], cutoff);
+    fits.swap_remove(0)
+}
+
+/// ψ_c M⁺ for every target row ψ_c (one SVD of `matrix` for all of them: a vector field's
+/// components share M, (4.162)–(4.166)).
+pub fn min_norm_rows(
+    matrix: DMatrix<Complex<f64>>,
+    targets: &[&[Complex<f64>]],
+    cutoff: f64,
+) -> Vec<Fit> {
     let svd = matrix.svd(true, true);
     let (Some(u), Some(v_t)) = (svd.u.as_ref(), svd.v_t.as_ref()) else {
         unreachable!("the SVD was asked for both factors");
@@ -27,33 +38,39 @@ pub fn min_norm_row(matrix: DMatrix<Complex<f64>>, psi: &[Complex<f64>], cutoff:
     let largest = sigma.iter().fold(0.0f64, |a, &s| a.max(s));
     let smallest = sigma.iter().fold(f64::INFINITY, |a, &s| a.min(s));
     let keep = cutoff * largest;
-    // M⁺ = V Σ⁺ Uᴴ, so ψ M⁺ = ((ψ V) Σ⁺) Uᴴ with V = (Vᵀ)ᴴ.
-    let psi = DVector::from_column_slice(psi);
-    let mut rank = 0;
-    let mut row = vec![Complex::new(0.0, 0.0); u.nrows()];
-    for (s, &value) in sigma.iter().enumerate() {
-        if value <= keep || value == 0.0 {
-            continue;
-        }
-        rank += 1;
-        // (ψ V)_s = Σ_b ψ_b conj(Vᵀ_{s b}).
-        let coefficient: Complex<f64> = (0..psi.len())
-            .map(|b| psi[b] * v_t[(s, b)].conj())
-            .sum::<Complex<f64>>()
-            / value;
-        for (r, out) in row.iter_mut().enumerate() {
-            *out += coefficient * u[(r, s)].conj();
-        }
-    }
-    Fit {
-        row,
-        condition: if smallest > 0.0 {
-            largest / smallest
-        } else {
-            f64::INFINITY
-        },
-        rank,
-    }
+    let condition = if smallest > 0.0 {
+        largest / smallest
+    } else {
+        f64::INFINITY
+    };
+    targets
+        .iter()
+        .map(|psi| {
+            // M⁺ = V Σ⁺ Uᴴ, so ψ M⁺ = ((ψ V) Σ⁺) Uᴴ with V = (Vᵀ)ᴴ.
+            let psi = DVector::from_column_slice(psi);
+            let mut rank = 0;
+            let mut row = vec![Complex::new(0.0, 0.0); u.nrows()];
+            for (s, &value) in sigma.iter().enumerate() {
+                if value <= keep || value == 0.0 {
+                    continue;
+                }
+                rank += 1;
+                // (ψ V)_s = Σ_b ψ_b conj(Vᵀ_{s b}).
+                let coefficient: Complex<f64> = (0..psi.len())
+                    .map(|b| psi[b] * v_t[(s, b)].conj())
+                    .sum::<Complex<f64>>()
+                    / value;
+                for (r, out) in row.iter_mut().enumerate() {
+                    *out += coefficient * u[(r, s)].conj();
+                }
+            }
+            Fit {
+                row,
+                condition,
+                rank,
+            }
+        })
+        .collect()
 }
 
 #[cfg(test)]

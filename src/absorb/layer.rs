@@ -6,7 +6,7 @@
 
 use nalgebra::{Complex, DMatrix};
 
-use super::fit::{Fit, min_norm_row};
+use super::fit::{Fit, min_norm_rows};
 
 /// One far-field mode ψ = exp(a·x̄ + s t̄) about an absorbing node (x̄ = x − x_i): a real
 /// diffusion mode exp(k N·x̄ + ω̄ t̄) (4.25) or a damped outgoing wave
@@ -15,6 +15,8 @@ use super::fit::{Fit, min_norm_row};
 pub struct Mode<const D: usize> {
     pub wave_vector: [Complex<f64>; D],
     pub rate: Complex<f64>,
+    /// A vector field's polarization γ (bond-based PD, (4.152)); `None` for scalar fields.
+    pub polarization: Option<[f64; D]>,
 }
 
 impl<const D: usize> Mode<D> {
@@ -24,6 +26,11 @@ impl<const D: usize> Mode<D> {
             e += a * v;
         }
         e.exp()
+    }
+
+    /// The polarization's component `q` (1 for a scalar field).
+    fn component(&self, q: usize) -> f64 {
+        self.polarization.map_or(1.0, |g| g[q])
     }
 }
 
@@ -60,26 +67,34 @@ pub struct NodeReport {
 pub struct AbsorbingLayer {
     pub nodes: Vec<u32>,
     pub levels: Levels,
+    /// Field components per node: 1 (scalar fields) or D (displacements).
+    pub components: usize,
     offsets: Vec<usize>,
     cloud: Vec<u32>,
-    /// Re V_G per cloud entry and level (`levels` values per entry: t^n, then t^{n−1}).
+    /// Re V_G per cloud entry, level and input component, for each output component
+    /// (entry-major: `levels · components²` values per cloud entry, output component fastest).
     value_weights: Vec<f64>,
     /// Re V_H likewise (waves only).
     rate_weights: Vec<f64>,
+    /// The rate rows act on the field's values (the first-order boundary's u̇ = −A ∂_n u − d u),
+    /// not on the rates' (the fitted modes' V_H·H^n).
+    pub rates_from_field: bool,
     pub reports: Vec<NodeReport>,
 }
 
-/// The fitted row of one quantity: V = ψ(0, Δt) M⁺, M's rows ψ(x̄_j, t̄) for the cloud's
-/// nodes j and the levels t̄ (entries ordered node-major, level-minor); `scale` multiplies
-/// each mode (the rate row's ṡ = s).
-fn fit_row<const D: usize>(
+/// The fitted rows of one quantity, one per output component c: V_c = ψ_c(0, Δt) M⁺, M's rows
+/// γ_q ψ(x̄_j, t̄) for the cloud's nodes j, the levels t̄ and the components q (entries ordered
+/// node, level, component; (4.162)–(4.166) for vector fields); `scaled` multiplies each mode by
+/// its rate (the rate rows' ψ̇ = s ψ).
+fn fit_rows<const D: usize>(
     positions: &[[f64; D]],
     spec: &CloudSpec<D>,
     levels: &[f64],
+    components: usize,
     dt: f64,
     scaled: bool,
     cutoff: f64,
-) -> Fit {
+) -> Vec<Fit> {
     let xi = positions[spec.node as usize];
     let local: Vec<[f64; D]> = spec
         .cloud
@@ -93,21 +108,42 @@ fn fit_row<const D: usize>(
             Complex::new(1.0, 0.0)
         }
     };
-    let rows = local.len() * levels.len();
-    let matrix = DMatrix::from_fn(rows, spec.modes.len(), |r, b| {
+    let per_node = levels.len() * components;
+    let matrix = DMatrix::from_fn(local.len() * per_node, spec.modes.len(), |r, b| {
         let mode = &spec.modes[b];
-        factor(mode) * mode.at(&local[r / levels.len()], levels[r % levels.len()])
+        let (j, l, q) = (r / per_node, (r % per_node) / components, r % components);
+        factor(mode) * mode.component(q) * mode.at(&local[j], levels[l])
     });
-    let psi: Vec<Complex<f64>> = spec
-        .modes
-        .iter()
-        .map(|m| factor(m) * m.at(&[0.0; D], dt))
+    let targets: Vec<Vec<Complex<f64>>> = (0..components)
+        .map(|c| {
+            spec.modes
+                .iter()
+                .map(|m| factor(m) * m.component(c) * m.at(&[0.0; D], dt))
+                .collect()
+        })
         .collect();
-    min_norm_row(matrix, &psi, cutoff)
+    let targets: Vec<&[Complex<f64>]> = targets.iter().map(Vec::as_slice).collect();
+    min_norm_rows(matrix, &targets, cutoff)
+}
+
+/// The largest |Re V_j| over rows.
+fn largest(fits: &[Fit]) -> f64 {
+    fits.iter()
+        .flat_map(|f| &f.row)
+        .fold(0.0f64, |a, v| a.max(v.re.abs()))
+}
+
+/// Interleaves the output components' rows: entry r of output c at `r · components + c`.
+fn interleave(fits: &[Fit], out: &mut Vec<f64>) {
+    let Some(first) = fits.first() else { return };
+    for r in 0..first.row.len() {
+        out.extend(fits.iter().map(|f| f.row[r].re));
+    }
 }
 
 impl AbsorbingLayer {
-    /// Fits every node's rows (one SVD per quantity and node, at setup only).
+    /// Fits every node's rows (one SVD per quantity and node, at setup only). A mode with a
+    /// polarization makes the layer a vector one (D components per node).
     pub fn fit<const D: usize>(
         positions: &[[f64; D]],
         specs: &[CloudSpec<D>],
@@ -120,44 +156,69 @@ impl AbsorbingLayer {
             Levels::One => &[0.0],
             Levels::Two => &[0.0, -dt],
         };
-        let fitted: Vec<(Fit, Option<Fit>)> = specs
+        let vector = specs
+            .iter()
+            .flat_map(|s| s.modes.first())
+            .any(|m| m.polarization.is_some());
+        let components = if vector { D } else { 1 };
+        let fitted: Vec<(Vec<Fit>, Vec<Fit>)> = specs
             .par_iter()
             .map(|s| {
-                let value = fit_row(positions, s, times, dt, false, cutoff);
-                let rate =
-                    (levels == Levels::Two).then(|| fit_row(positions, s, times, dt, true, cutoff));
+                let rows = |scaled| fit_rows(positions, s, times, components, dt, scaled, cutoff);
+                let value = rows(false);
+                let rate = if levels == Levels::Two {
+                    rows(true)
+                } else {
+                    Vec::new()
+                };
                 (value, rate)
             })
             .collect();
-        let mut layer = AbsorbingLayer {
-            nodes: specs.iter().map(|s| s.node).collect(),
+        let mut layer = AbsorbingLayer::empty(levels, components);
+        for (s, (value, rate)) in specs.iter().zip(fitted) {
+            let report = NodeReport {
+                node: s.node,
+                cloud: s.cloud.len(),
+                modes: s.modes.len(),
+                norm: largest(&value).max(largest(&rate)),
+                condition: value.first().map_or(f64::NAN, |f| f.condition),
+                rank: value.first().map_or(0, |f| f.rank),
+            };
+            let (mut v, mut r) = (Vec::new(), Vec::new());
+            interleave(&value, &mut v);
+            interleave(&rate, &mut r);
+            layer.push(s.node, &s.cloud, &v, &r, report);
+        }
+        layer
+    }
+
+    /// A layer without nodes.
+    pub fn empty(levels: Levels, components: usize) -> AbsorbingLayer {
+        AbsorbingLayer {
+            nodes: Vec::new(),
             levels,
+            components,
             offsets: vec![0],
             cloud: Vec::new(),
             value_weights: Vec::new(),
             rate_weights: Vec::new(),
+            rates_from_field: false,
             reports: Vec::new(),
-        };
-        for (s, (value, rate)) in specs.iter().zip(fitted) {
-            layer.cloud.extend_from_slice(&s.cloud);
-            layer.offsets.push(layer.cloud.len());
-            let largest = |f: &Fit| f.row.iter().fold(0.0f64, |a, v| a.max(v.re.abs()));
-            let mut norm = largest(&value);
-            layer.value_weights.extend(value.row.iter().map(|v| v.re));
-            if let Some(rate) = &rate {
-                norm = norm.max(largest(rate));
-                layer.rate_weights.extend(rate.row.iter().map(|v| v.re));
-            }
-            layer.reports.push(NodeReport {
-                node: s.node,
-                cloud: s.cloud.len(),
-                modes: s.modes.len(),
-                norm,
-                condition: value.condition,
-                rank: value.rank,
-            });
         }
-        layer
+    }
+
+    /// Appends absorbing node `node` with its cloud and weights (`levels · components²` per
+    /// cloud entry, laid out as `value_weights` says; `rate` empty with one level).
+    pub fn push(&mut self, node: u32, cloud: &[u32], value: &[f64], rate: &[f64], r: NodeReport) {
+        let per_entry = self.levels() * self.components * self.components;
+        debug_assert_eq!(value.len(), cloud.len() * per_entry);
+        debug_assert!(rate.is_empty() || rate.len() == value.len());
+        self.nodes.push(node);
+        self.cloud.extend_from_slice(cloud);
+        self.offsets.push(self.cloud.len());
+        self.value_weights.extend_from_slice(value);
+        self.rate_weights.extend_from_slice(rate);
+        self.reports.push(r);
     }
 
     fn levels(&self) -> usize {
@@ -168,30 +229,38 @@ impl AbsorbingLayer {
     }
 
     /// The new values of the absorbing nodes from the cloud's `now` and `before` (t^{n−1};
-    /// unused with one level) values through `weights`, into `out` (one per absorbing node).
+    /// unused with one level) values through `weights`, into `out` (`components` per absorbing
+    /// node; `now` and `before` hold `components` values per node too).
     fn apply(&self, weights: &[f64], now: &[f64], before: &[f64], out: &mut [f64]) {
-        let levels = self.levels();
-        for (a, o) in out.iter_mut().enumerate() {
-            let mut sum = 0.0;
+        let (levels, nc) = (self.levels(), self.components);
+        let per_entry = levels * nc * nc;
+        for (a, o) in out.chunks_exact_mut(nc).enumerate() {
+            o.fill(0.0);
             for e in self.offsets[a]..self.offsets[a + 1] {
                 let j = self.cloud[e] as usize;
-                let w = &weights[e * levels..(e + 1) * levels];
-                sum += w[0] * now[j];
-                if levels == 2 {
-                    sum += w[1] * before[j];
+                let w = &weights[e * per_entry..(e + 1) * per_entry];
+                for (l, data) in [now, before].iter().take(levels).enumerate() {
+                    for q in 0..nc {
+                        let x = data[j * nc + q];
+                        let w = &w[(l * nc + q) * nc..(l * nc + q + 1) * nc];
+                        for (o, w) in o.iter_mut().zip(w) {
+                            *o += w * x;
+                        }
+                    }
                 }
             }
-            *o = sum;
         }
     }
 
-    /// u_i^{n+1} = V_G·G^n of every absorbing node (4.31), (4.82).
+    /// u_i^{n+1} = V_G·G^n of every absorbing node (4.31), (4.82), (4.166).
     pub fn values(&self, now: &[f64], before: &[f64], out: &mut [f64]) {
         self.apply(&self.value_weights, now, before, out);
     }
 
-    /// v_i^{n+1} = V_H·H^n (4.82); waves only.
-    pub fn rates(&self, now: &[f64], before: &[f64], out: &mut [f64]) {
+    /// v_i^{n+1} = V_H·H^n (4.82), (4.166) from the rates at t^n, t^{n−1} (`rates_now`,
+    /// `rates_before`), or from the field's values for the first-order boundary; waves only.
+    pub fn rates(&self, field: [&[f64]; 2], rates: [&[f64]; 2], out: &mut [f64]) {
+        let [now, before] = if self.rates_from_field { field } else { rates };
         self.apply(&self.rate_weights, now, before, out);
     }
 
@@ -223,6 +292,7 @@ mod tests {
                 Mode {
                     wave_vector: [Complex::new(k, 0.0)],
                     rate: Complex::new(k * k, 0.0),
+                    polarization: None,
                 }
             })
             .collect();

@@ -4,10 +4,11 @@
 //! (diffusion (§4.1), scalar waves (§4.2)) are built here from a scene.
 
 pub mod dispersion;
+pub mod first_order;
 pub mod fit;
 pub mod layer;
 
-pub use dispersion::ScalarLattice;
+pub use dispersion::{BondLattice, ScalarLattice};
 pub use layer::{AbsorbingLayer, CloudSpec, Levels, Mode, NodeReport};
 
 use nalgebra::Complex;
@@ -111,6 +112,7 @@ pub fn scalar_modes<const D: usize>(
                     Mode {
                         wave_vector: std::array::from_fn(|c| Complex::new(k * n[c], 0.0)),
                         rate: Complex::new(rate, 0.0),
+                        polarization: None,
                     }
                 }
                 ScalarFarField::Wave {
@@ -126,6 +128,7 @@ pub fn scalar_modes<const D: usize>(
                     Mode {
                         wave_vector: std::array::from_fn(|c| Complex::new(0.0, k * n[c])),
                         rate: Complex::new(-damping, 0.0) - Complex::new(0.0, 1.0) * omega,
+                        polarization: None,
                     }
                 }
             };
@@ -189,34 +192,147 @@ pub fn scalar_layer<const D: usize>(
         ScalarFarField::Diffusion { .. } => Levels::One,
         ScalarFarField::Wave { .. } => Levels::Two,
     };
-    let mut thin = vec![0u32; nodes.len()];
-    let specs = |thin: &[u32]| -> Vec<CloudSpec<D>> {
-        nodes
-            .iter()
-            .zip(thin)
-            .map(|((i, n), &t)| CloudSpec {
-                node: *i,
-                modes: scalar_modes(n, spec, lattice, far),
-                cloud: cloud(*i, n, positions, families, spec, spacing, t),
+    let clouds = Clouds {
+        spec,
+        positions,
+        families,
+        spacing,
+    };
+    clouds.fit(nodes, levels, dt, |n| scalar_modes(n, spec, lattice, far))
+}
+
+/// The fitted layer of linearized 2D bond-based PD (thesis §4.3.3): per (φ_l, k_m) an outgoing
+/// pressure and shear mode (seed-thesis-ch4-5 erratum 14: both, so 2 n_φ n_k columns), fitted
+/// on two levels for u and u̇ ((4.162)–(4.166)).
+#[allow(clippy::too_many_arguments)]
+pub fn bond_layer<const D: usize>(
+    spec: &AbsorbingSpec,
+    nodes: &[(u32, [f64; D])],
+    positions: &[[f64; D]],
+    families: &Families,
+    far: &BondFarField,
+    spacing: f64,
+    dt: f64,
+) -> AbsorbingLayer {
+    let clouds = Clouds {
+        spec,
+        positions,
+        families,
+        spacing,
+    };
+    clouds.fit(nodes, Levels::Two, dt, |n| {
+        bond_modes(&[n[0], n[1]], spec, far)
+            .into_iter()
+            .map(|m| Mode {
+                wave_vector: std::array::from_fn(|k| m.wave_vector[k]),
+                rate: m.rate,
+                polarization: m.polarization.map(|g| std::array::from_fn(|k| g[k])),
             })
             .collect()
-    };
-    let mut layer = AbsorbingLayer::fit(positions, &specs(&thin), levels, dt, spec.cutoff);
-    if !spec.thinning {
-        return layer;
-    }
-    for _ in 0..3 {
-        let mut changed = false;
-        for (t, r) in thin.iter_mut().zip(&layer.reports) {
-            if (r.norm > spec.max_norm || r.condition > spec.max_condition) && r.cloud > 2 {
-                *t += 1;
-                changed = true;
+    })
+}
+
+/// The far field of linearized 2D bond-based PD: its lattice, density and the local wave
+/// speeds (4.110) for `dispersion = "local"`.
+#[derive(Debug, Clone)]
+pub struct BondFarField {
+    pub lattice: BondLattice,
+    pub density: f64,
+    /// (c_P, c_S) of the local limit.
+    pub speeds: (f64, f64),
+}
+
+/// The outgoing P and S modes of one absorbing node: ψ = γ exp(i(k N·x̄ − ω t̄)), ‖γ‖ = 2
+/// (4.103), ω and γ from the discrete acoustic matrix (4.144)–(4.151) (erratum 7) or the local
+/// limit (4.110).
+pub fn bond_modes(normal: &[f64; 2], spec: &AbsorbingSpec, far: &BondFarField) -> Vec<Mode<2>> {
+    let mut modes = Vec::new();
+    for n in directions(normal, spec, true) {
+        for &k in &wave_numbers(spec, true) {
+            let waves = match spec.dispersion {
+                Dispersion::Discrete => far.lattice.waves(k, &n, far.density),
+                Dispersion::Local => dispersion::BondWaves {
+                    pressure: (far.speeds.0 * k.abs(), n),
+                    shear: (far.speeds.1 * k.abs(), [-n[1], n[0]]),
+                },
+            };
+            for (omega, gamma) in [waves.pressure, waves.shear] {
+                modes.push(Mode {
+                    wave_vector: [Complex::new(0.0, k * n[0]), Complex::new(0.0, k * n[1])],
+                    rate: Complex::new(0.0, -omega),
+                    polarization: Some([2.0 * gamma[0], 2.0 * gamma[1]]),
+                });
             }
         }
-        if !changed {
-            break;
-        }
-        layer = AbsorbingLayer::fit(positions, &specs(&thin), levels, dt, spec.cutoff);
     }
-    layer
+    modes
+}
+
+/// What the clouds of a layer are taken from.
+pub(crate) struct Clouds<'a, const D: usize> {
+    pub spec: &'a AbsorbingSpec,
+    pub positions: &'a [[f64; D]],
+    pub families: &'a Families,
+    pub spacing: f64,
+}
+
+impl<const D: usize> Clouds<'_, D> {
+    /// The cloud of absorbing node `i` with outward normal `normal`, thinned `thin` times.
+    pub fn of(&self, i: u32, normal: &[f64; D], thin: u32) -> Vec<u32> {
+        cloud(
+            i,
+            normal,
+            self.positions,
+            self.families,
+            self.spec,
+            self.spacing,
+            thin,
+        )
+    }
+
+    /// Fits the modes `modes(normal)` of every node; with `spec.thinning`, a node whose ‖V‖
+    /// or cond(M) exceeds its limit gets its cloud thinned (density halved along the axes, up
+    /// to 3 times; thesis Fig. 4.23).
+    fn fit(
+        &self,
+        nodes: &[(u32, [f64; D])],
+        levels: Levels,
+        dt: f64,
+        modes: impl Fn(&[f64; D]) -> Vec<Mode<D>>,
+    ) -> AbsorbingLayer {
+        let spec = self.spec;
+        let mut thin = vec![0u32; nodes.len()];
+        let specs = |thin: &[u32]| -> Vec<CloudSpec<D>> {
+            nodes
+                .iter()
+                .zip(thin)
+                .map(|((i, n), &t)| CloudSpec {
+                    node: *i,
+                    modes: modes(n),
+                    cloud: self.of(*i, n, t),
+                })
+                .collect()
+        };
+        let fit = |thin: &[u32]| {
+            AbsorbingLayer::fit(self.positions, &specs(thin), levels, dt, spec.cutoff)
+        };
+        let mut layer = fit(&thin);
+        if !spec.thinning {
+            return layer;
+        }
+        for _ in 0..3 {
+            let mut changed = false;
+            for (t, r) in thin.iter_mut().zip(&layer.reports) {
+                if (r.norm > spec.max_norm || r.condition > spec.max_condition) && r.cloud > 2 {
+                    *t += 1;
+                    changed = true;
+                }
+            }
+            if !changed {
+                break;
+            }
+            layer = fit(&thin);
+        }
+        layer
+    }
 }

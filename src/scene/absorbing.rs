@@ -2,7 +2,7 @@
 //! the defaults of thesis §4.1.3, §4.2.3 per physics (seed-thesis-ch4-5 §1.3).
 
 use super::error::{ErrorContext, SceneError};
-use super::schema::{AbsorbingTable, Physics, Preset};
+use super::schema::{AbsorbingTable, Physics, Preset, PulseDirectionTable};
 use super::validate::{length, point, positive};
 use super::*;
 use crate::model::pmb::Influence;
@@ -72,7 +72,26 @@ pub(super) fn wave(
     ))
 }
 
-pub(super) fn pulses(p: &Preset, ctx: &ErrorContext, dim: usize) -> Result<Vec<Pulse>, SceneError> {
+/// `[[initial.pulse]]`: Gaussians of a scalar field, or of the displacement (dynamics, with a
+/// `direction`).
+pub(super) fn pulses(
+    p: &Preset,
+    ctx: &ErrorContext,
+    dim: usize,
+    physics: Physics,
+) -> Result<Vec<Pulse>, SceneError> {
+    let scalar = match physics {
+        Physics::Diffusion | Physics::Corrosion | Physics::ScalarWave => true,
+        Physics::Dynamics => false,
+        Physics::Static if p.initial.pulse.is_empty() => true,
+        Physics::Static => {
+            return Err(ctx.error(
+                "initial.pulse",
+                "pulses set an initial field: physics = \"diffusion\", \"corrosion\", \
+                 \"scalar-wave\" or \"dynamics\"",
+            ));
+        }
+    };
     p.initial
         .pulse
         .iter()
@@ -89,10 +108,49 @@ pub(super) fn pulses(p: &Preset, ctx: &ErrorContext, dim: usize) -> Result<Vec<P
                 ));
             }
             let decay = positive(ctx, &format!("{path}.decay"), q.decay.si())?;
+            let radius = match q.radius {
+                Some(r) => positive(ctx, &format!("{path}.radius"), r.si())?,
+                None => f64::INFINITY,
+            };
+            let field = format!("{path}.direction");
+            let direction = match (&q.direction, scalar) {
+                (None, true) => None,
+                (Some(_), true) => {
+                    return Err(ctx.error(
+                        &field,
+                        "a scalar field's pulse has no direction (only dynamics displaces)",
+                    ));
+                }
+                (None, false) => {
+                    return Err(ctx.error(
+                        &field,
+                        "a displacement pulse needs a direction: \"radial\" or a vector",
+                    ));
+                }
+                (Some(PulseDirectionTable::Named(n)), false) if n == "radial" => {
+                    Some(PulseDirection::Radial)
+                }
+                (Some(PulseDirectionTable::Named(n)), false) => {
+                    return Err(ctx.error(
+                        &field,
+                        format!("must be \"radial\" or a vector of {dim} numbers, got \"{n}\""),
+                    ));
+                }
+                (Some(PulseDirectionTable::Vector(v)), false) => {
+                    let v = point(v, dim, &field).map_err(|m| ctx.from_path_message(&m))?;
+                    let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+                    if !(norm > 0.0 && norm.is_finite()) {
+                        return Err(ctx.error(&field, "must be a non-zero finite vector"));
+                    }
+                    Some(PulseDirection::Fixed(v.iter().map(|x| x / norm).collect()))
+                }
+            };
             Ok(Pulse {
                 center,
                 amplitude,
                 decay,
+                radius,
+                direction,
             })
         })
         .collect()
@@ -123,17 +181,32 @@ pub(super) fn absorbing(
     horizon: f64,
 ) -> Result<AbsorbingSpec, SceneError> {
     let (dim, physics, solid) = scene;
-    let wave = match physics {
-        Physics::ScalarWave => true,
-        Physics::Diffusion | Physics::Corrosion => false,
-        _ => {
+    let (wave, bond) = match physics {
+        Physics::ScalarWave => (true, false),
+        Physics::Dynamics if dim == 2 => (true, true),
+        Physics::Diffusion | Physics::Corrosion => (false, false),
+        Physics::Dynamics => {
             return Err(ctx.error(
                 "absorbing",
-                "absorbing layers are available for physics = \"diffusion\", \"corrosion\" and \
-                 \"scalar-wave\"",
+                format!("bond-based absorbing layers are implemented in 2D; this scene is {dim}D"),
+            ));
+        }
+        Physics::Static => {
+            return Err(ctx.error(
+                "absorbing",
+                "absorbing layers are available for physics = \"diffusion\", \"corrosion\", \
+                 \"scalar-wave\" and \"dynamics\" (2D)",
             ));
         }
     };
+    let method = table.method.unwrap_or_default();
+    if method == AbsorbingMethod::FirstOrder && !wave {
+        return Err(ctx.error(
+            "absorbing.method",
+            "the first-order boundary (4.75) is a wave condition: physics = \"scalar-wave\" or \
+             \"dynamics\"",
+        ));
+    }
     if dim > 2 {
         return Err(ctx.error(
             "absorbing",
@@ -213,9 +286,12 @@ pub(super) fn absorbing(
             ),
         ));
     }
-    let spread_degrees = table
-        .spread_degrees
-        .unwrap_or(if dim == 1 { 0.0 } else { 45.0 });
+    // Bond-based: Δφ ≤ π/8 (thesis §4.3.4, after [95]).
+    let spread_degrees = table.spread_degrees.unwrap_or(match (dim, bond) {
+        (1, _) => 0.0,
+        (_, true) => 22.5,
+        _ => 45.0,
+    });
     let spread = in_range(
         ctx,
         "absorbing.spread_degrees",
@@ -232,7 +308,12 @@ pub(super) fn absorbing(
         (0.0..1.0).contains(&cutoff),
         "[0, 1)",
     )?;
-    let max_norm = positive(ctx, "absorbing.max_norm", table.max_norm.unwrap_or(2.0))?;
+    // ‖V‖ ≤ 2 for scalar waves, ≤ 1 for bond-based PD (§4.2.3, §4.3.4; erratum 8: a setting).
+    let max_norm = positive(
+        ctx,
+        "absorbing.max_norm",
+        table.max_norm.unwrap_or(if bond { 1.0 } else { 2.0 }),
+    )?;
     let max_condition = table.max_condition.unwrap_or(1e12);
     let max_condition = in_range(
         ctx,
@@ -242,6 +323,7 @@ pub(super) fn absorbing(
         "(1, ∞)",
     )?;
     Ok(AbsorbingSpec {
+        method,
         width,
         cloud_radius,
         wave_numbers,

@@ -2,6 +2,10 @@
 
 const PRESETS: &[(&str, &str)] = &[
     (
+        "abc-bond-2d",
+        include_str!("../../presets/abc-bond-2d.toml"),
+    ),
+    (
         "abc-corrosion-2d",
         include_str!("../../presets/abc-corrosion-2d.toml"),
     ),

@@ -176,6 +176,18 @@ pub struct Pulse {
     pub amplitude: f64,
     /// a (1/m²).
     pub decay: f64,
+    /// Zero beyond this distance from the centre (m).
+    pub radius: f64,
+    /// A displacement pulse's direction (dynamics); `None` for scalar fields.
+    pub direction: Option<PulseDirection>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum PulseDirection {
+    /// Along e_r = (x − x0)/‖x − x0‖ (zero at the centre; thesis (4.168)).
+    Radial,
+    /// Along a fixed unit vector.
+    Fixed(Vec<f64>),
 }
 
 impl Pulse {
@@ -185,8 +197,44 @@ impl Pulse {
             .zip(&self.center)
             .map(|(a, b)| (a - b) * (a - b))
             .sum();
+        if r2 > self.radius * self.radius {
+            return 0.0;
+        }
         self.amplitude * (-self.decay * r2).exp()
     }
+
+    /// A displacement pulse's value at `x` (component k into `out[k]`, added).
+    pub fn add_displacement(&self, x: &[f64], out: &mut [f64]) {
+        let size = self.value(x);
+        match &self.direction {
+            Some(PulseDirection::Fixed(e)) => {
+                for (o, e) in out.iter_mut().zip(e) {
+                    *o += size * e;
+                }
+            }
+            Some(PulseDirection::Radial) | None => {
+                let rel: Vec<f64> = x.iter().zip(&self.center).map(|(a, b)| a - b).collect();
+                let r = rel.iter().map(|v| v * v).sum::<f64>().sqrt();
+                if r > 0.0 {
+                    for (o, v) in out.iter_mut().zip(&rel) {
+                        *o += size * v / r;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// How an absorbing layer sets its nodes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum AbsorbingMethod {
+    /// The minimum-norm fit of outgoing far-field modes (thesis §4.1–4.3).
+    #[default]
+    Modes,
+    /// The conventional first-order boundary u̇ + χ ∂_n u + d u = 0 (4.75) in every layer
+    /// node (waves and bond-based PD; the baseline of the acceptance).
+    FirstOrder,
 }
 
 /// Which wave numbers the far-field modes take (seed-thesis-ch4-5 §3.2, erratum 6).
@@ -215,6 +263,7 @@ pub enum Dispersion {
 /// seed-thesis-ch4-5 §1.3 for the knobs and their defaults).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AbsorbingSpec {
+    pub method: AbsorbingMethod,
     /// Nodes nearer the truncation than this are absorbing (m).
     pub width: f64,
     /// d∞, the cloud's radius (m).

@@ -435,6 +435,18 @@ pub struct PulseTable {
     pub amplitude: Quantity,
     /// a (1/m²).
     pub decay: Quantity,
+    /// Dynamics: the displacement's direction, `"radial"` (u = A e^{−a r²} e_r, thesis
+    /// (4.168)) or a vector (normalized); scalar fields take none.
+    pub direction: Option<PulseDirectionTable>,
+    /// The pulse is zero beyond this distance from its centre (m; (4.168)'s r ≤ 40).
+    pub radius: Option<Quantity>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum PulseDirectionTable {
+    Named(String),
+    Vector(Point),
 }
 
 fn unit_quantity() -> Quantity {
@@ -446,6 +458,9 @@ fn unit_quantity() -> Quantity {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AbsorbingTable {
+    /// "modes" (the fitted far-field modes, default) or "first-order" (the conventional
+    /// boundary (4.75), the baseline).
+    pub method: Option<super::AbsorbingMethod>,
     pub width: Option<Measure>,
     pub cloud_radius: Option<Measure>,
     pub wave_numbers: Option<usize>,

@@ -216,18 +216,7 @@ pub(super) fn validate(
              or WLS)",
         ));
     }
-    let initial_pulses = super::absorbing::pulses(p, ctx, dim)?;
-    if !initial_pulses.is_empty()
-        && !matches!(
-            physics,
-            Physics::Diffusion | Physics::Corrosion | Physics::ScalarWave
-        )
-    {
-        return Err(ctx.error(
-            "initial.pulse",
-            "pulses set a scalar field: physics = \"diffusion\", \"corrosion\" or \"scalar-wave\"",
-        ));
-    }
+    let initial_pulses = super::absorbing::pulses(p, ctx, dim, physics)?;
     let reference = p
         .reference
         .as_ref()
@@ -329,12 +318,6 @@ pub(super) fn validate(
         })
         .collect::<Result<Vec<_>, String>>()
         .map_err(|m| ctx.from_path_message(&m))?;
-    if !probes.is_empty() && matches!(physics, Physics::Dynamics) {
-        return Err(ctx.error(
-            "metrics.probe",
-            "probes read a scalar field: physics = \"diffusion\", \"corrosion\", \"static\" or \"scalar-wave\"",
-        ));
-    }
     let energy_circles = p
         .metrics
         .energy_circle

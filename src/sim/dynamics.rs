@@ -6,6 +6,7 @@
 
 use rayon::prelude::*;
 
+use super::unbounded::{self, BondLayer};
 use crate::adapt::hybrid::{self, Hybrid};
 use crate::adapt::masks::{GridClass, SchemeClass};
 use crate::adapt::multiadaptive::MultiAdaptive;
@@ -22,12 +23,20 @@ use crate::solver::{
 };
 
 /// Velocity-Verlet's stages, in the order `step()` runs them.
-const STAGES: &[&str] = &["kick_drift", "switching", "forces", "kick", "constraints"];
+const STAGES: &[&str] = &[
+    "kick_drift",
+    "switching",
+    "forces",
+    "kick",
+    "constraints",
+    "absorbing",
+];
 const KICK_DRIFT: usize = 0;
 const SWITCHING: usize = 1;
 const FORCES: usize = 2;
 const KICK: usize = 3;
 const CONSTRAINTS: usize = 4;
+const ABSORBING: usize = 5;
 
 /// Power iterations for the stable-step estimate.
 const POWER_ITERATIONS: usize = 60;
@@ -75,6 +84,10 @@ pub struct DynamicSimulation<const D: usize> {
     /// "Adaptive, hybrid" (thesis §3.5): WLS rows of the initially active coarse nodes (the
     /// coarse active set only shrinks); `None` runs the standard scheme on the coarse level.
     pub coarse_wls: Option<WlsRows<D>>,
+    /// Unbounded-domain scenes: the absorbing layer of the linear far field (thesis §4.3).
+    pub absorbing: Option<BondLayer<D>>,
+    /// `[[metrics.probe]]`: (name, nearest node).
+    probes: Vec<(String, usize)>,
 }
 
 /// The standard scheme over one discretization's reference configuration.
@@ -332,6 +345,8 @@ impl<const D: usize> DynamicSimulation<D> {
         if let Some(body) = body_force {
             columns.body_force = Some(discretization.nodes.fields.add_values("body_force", body));
         }
+        let absorbing = BondLayer::new(scene, discretization.nodes.reference(), &law, density)?;
+        let probes = unbounded::probes(scene, discretization.nodes.reference());
         let mut sim = DynamicSimulation {
             scene: scene.clone(),
             discretization,
@@ -349,9 +364,18 @@ impl<const D: usize> DynamicSimulation<D> {
             multigrid,
             coarse_broken: 0,
             coarse_wls,
+            absorbing,
+            probes,
         };
         sim.apply_initial_velocity();
+        sim.apply_initial_displacement();
         sim.apply_constraints();
+        if let Some(b) = sim.absorbing.as_mut() {
+            let nodes = &sim.discretization.nodes;
+            let positions = nodes.fields.get(sim.columns.position);
+            let families = &sim.discretization.families;
+            b.start(sim.run.clock.dt(), nodes.reference(), families, positions);
+        }
         sim.velocity_scale = sim.initial_velocity_scale();
         sim.update_accelerations();
         Ok(sim)
@@ -388,6 +412,17 @@ impl<const D: usize> DynamicSimulation<D> {
                         v[component] += amplitude * (std::f64::consts::PI * modes * t).sin();
                     }
                 }
+            }
+        }
+    }
+
+    /// Displacement pulses (thesis (4.168)): y = x + Σ u⁰(x).
+    fn apply_initial_displacement(&mut self) {
+        let nodes = &mut self.discretization.nodes;
+        let positions = nodes.fields.get_mut(self.columns.position);
+        for pulse in &self.scene.initial_pulses {
+            for (y, x) in positions.iter_mut().zip(nodes.base.reference()) {
+                pulse.add_displacement(x, y);
             }
         }
     }
@@ -892,6 +927,18 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
     fn step(&mut self) -> Result<(), SimError> {
         let dt = self.run.clock.dt();
         let mut lap = Lap::start();
+        if let Some(b) = self.absorbing.as_mut() {
+            let d = &self.discretization;
+            let fields = &d.nodes.fields;
+            b.prepare(
+                dt,
+                d.nodes.reference(),
+                &d.families,
+                fields.get(self.columns.position),
+                fields.get(self.columns.velocity),
+            );
+            lap.charge(&mut self.run.stages, ABSORBING);
+        }
         {
             let c = self.columns;
             let fields = &mut self.discretization.nodes.fields;
@@ -906,6 +953,14 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
             verlet::drift(positions, velocities, dt);
         }
         lap.charge(&mut self.run.stages, KICK_DRIFT);
+        if let Some(b) = &self.absorbing {
+            let nodes = &mut self.discretization.nodes;
+            b.overwrite_positions(
+                nodes.base.reference(),
+                nodes.fields.get_mut(self.columns.position),
+            );
+            lap.charge(&mut self.run.stages, ABSORBING);
+        }
         // Switch before the force pass evaluates damage on u^{n+1}
         // (seed-thesis-ch2-3 §5 steps 4–5).
         self.switch_levels();
@@ -927,6 +982,11 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         lap.charge(&mut self.run.stages, KICK);
         self.apply_constraints();
         lap.charge(&mut self.run.stages, CONSTRAINTS);
+        if let Some(b) = &self.absorbing {
+            let fields = &mut self.discretization.nodes.fields;
+            b.overwrite_velocities(fields.get_mut(self.columns.velocity));
+            lap.charge(&mut self.run.stages, ABSORBING);
+        }
         self.run.clock.advance();
         let max_speed = max_speed2.sqrt();
         if max_speed.is_nan() || max_speed * dt > 0.5 * self.scene.spacing {
@@ -997,7 +1057,24 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
                 .collect();
             self.region_metrics(&node_energy, &damage, &mut scalars);
         }
+        if self.absorbing.is_some() || !self.probes.is_empty() {
+            let node_energy: Vec<f64> = strain_energy
+                .iter()
+                .zip(&speed)
+                .zip(&mass_volumes)
+                .map(|((w, s), v)| w + 0.5 * self.density * v * s * s)
+                .collect();
+            if let Some(b) = &self.absorbing {
+                scalars.push(("energy/near_field".to_string(), b.near_field(&node_energy)));
+            }
+            let density = |i: usize| node_energy[i] / mass_volumes[i].max(f64::MIN_POSITIVE);
+            let (reference, positions) = (self.reference(), self.positions());
+            unbounded::probe_scalars(&self.probes, reference, positions, density, &mut scalars);
+        }
         let (mut classes, mut events) = self.hybrid_frame(&mut scalars);
+        if let Some(b) = &self.absorbing {
+            classes.push(b.absorber.class_field());
+        }
         classes.extend(self.multigrid_frame(&mut scalars, &mut events));
         for (name, angle) in self.crack_angles_for(&damage) {
             if let Some(a) = angle {
@@ -1071,6 +1148,9 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         if let Some(h) = &self.hybrid {
             h.save(&mut state);
         }
+        if let Some(b) = &self.absorbing {
+            b.save(&mut state);
+        }
         if let Some(g) = &self.multigrid {
             state.put_u8("multigrid/refined", g.refined_cells());
             state.put_u64("multigrid/coarse_broken", vec![self.coarse_broken]);
@@ -1103,6 +1183,16 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
             None if state.has("multigrid/refined") => {
                 return Err(
                     "the checkpoint is of a multi-grid scene; this scene has one grid".into(),
+                );
+            }
+            None => {}
+        }
+        match self.absorbing.as_mut() {
+            Some(b) => b.restore(state)?,
+            None if state.has("absorbing/previous_displacement") => {
+                return Err(
+                    "the checkpoint is of a scene with an absorbing layer; this one has none"
+                        .into(),
                 );
             }
             None => {}
@@ -1140,6 +1230,12 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
 
     fn crack_angles(&self) -> Vec<(String, Option<f64>)> {
         self.crack_angles_for(&self.damage())
+    }
+
+    fn check_notes(&self) -> Vec<String> {
+        self.absorbing
+            .as_ref()
+            .map_or(Vec::new(), |b| b.absorber.report())
     }
 
     fn broken_bonds(&self) -> u64 {

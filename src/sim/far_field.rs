@@ -2,11 +2,11 @@
 //! scene and refitted when Δt changes (thesis §4.1–4.2), the scalar wave's velocity state for
 //! damped velocity-Verlet (4.62), and the near-field energy the viewer watches fall.
 
-use crate::absorb::{self, AbsorbingLayer, ScalarFarField, ScalarLattice};
+use crate::absorb::{self, AbsorbingLayer, BondFarField, ScalarFarField, ScalarLattice};
 use crate::discretization::{Families, Quadrature};
 use crate::frame::ClassField;
 use crate::model::diffusion::DiffusionKernel;
-use crate::scene::{AbsorbingSpec, Physics, Scene};
+use crate::scene::{AbsorbingMethod, AbsorbingSpec, Physics, Scene};
 use crate::scheme::ScalarOperator;
 
 /// The layer's class field ids.
@@ -17,13 +17,22 @@ const CLASSES: &[(u16, &str, [u8; 3])] = &[
     (ABSORBING, "absorbing", [217, 72, 1]),
 ];
 
+/// The far field a layer absorbs into.
+enum FarField<const D: usize> {
+    Scalar {
+        lattice: ScalarLattice<D>,
+        far: ScalarFarField,
+    },
+    /// Linearized 2D bond-based PD (thesis §4.3).
+    Bond(BondFarField),
+}
+
 /// An absorbing layer and what it needs to be refitted at another Δt.
 pub struct Absorber<const D: usize> {
     pub spec: AbsorbingSpec,
     pub layer: AbsorbingLayer,
     nodes: Vec<(u32, [f64; D])>,
-    lattice: ScalarLattice<D>,
-    far: ScalarFarField,
+    far: FarField<D>,
     spacing: f64,
     /// The Δt the rows were fitted for.
     dt: f64,
@@ -64,18 +73,46 @@ impl<const D: usize> Absorber<D> {
             },
             _ => ScalarFarField::Diffusion { diffusivity: local },
         };
+        Self::with(
+            spec,
+            nodes,
+            FarField::Scalar { lattice, far },
+            scene.spacing,
+            n,
+            1,
+        )
+    }
+
+    /// The layer of a 2D bond-based scene (`far` its linearized far field).
+    pub fn bond(
+        scene: &Scene,
+        spec: AbsorbingSpec,
+        nodes: Vec<(u32, [f64; D])>,
+        far: BondFarField,
+        n: usize,
+    ) -> Self {
+        Self::with(spec, nodes, FarField::Bond(far), scene.spacing, n, D)
+    }
+
+    fn with(
+        spec: AbsorbingSpec,
+        nodes: Vec<(u32, [f64; D])>,
+        far: FarField<D>,
+        spacing: f64,
+        n: usize,
+        components: usize,
+    ) -> Self {
         let mut is_absorbing = vec![false; n];
         nodes
             .iter()
             .for_each(|(i, _)| is_absorbing[*i as usize] = true);
-        let count = nodes.len();
+        let count = nodes.len() * components;
         Absorber {
             spec,
-            layer: AbsorbingLayer::fit::<D>(&[], &[], absorb::Levels::One, 0.0, 0.0),
+            layer: AbsorbingLayer::empty(absorb::Levels::One, components),
             nodes,
-            lattice,
             far,
-            spacing: scene.spacing,
+            spacing,
             dt: f64::NAN,
             is_absorbing,
             values: vec![0.0; count],
@@ -88,30 +125,81 @@ impl<const D: usize> Absorber<D> {
         if self.dt == dt {
             return;
         }
-        self.layer = absorb::scalar_layer(
-            &self.spec,
-            &self.nodes,
-            positions,
-            families,
-            &self.lattice,
-            self.far,
-            self.spacing,
-            dt,
-        );
+        let (spec, nodes, spacing) = (&self.spec, &self.nodes, self.spacing);
+        self.layer = match (spec.method, &self.far) {
+            (AbsorbingMethod::Modes, FarField::Scalar { lattice, far }) => {
+                absorb::scalar_layer(spec, nodes, positions, families, lattice, *far, spacing, dt)
+            }
+            (AbsorbingMethod::Modes, FarField::Bond(far)) => {
+                absorb::bond_layer(spec, nodes, positions, families, far, spacing, dt)
+            }
+            (AbsorbingMethod::FirstOrder, far) => {
+                let clouds = absorb::Clouds {
+                    spec,
+                    positions,
+                    families,
+                    spacing,
+                };
+                match far {
+                    // (4.75): u̇ + χ ∂_n u + d u = 0 (a diffusion scene is refused by validation;
+                    // its χ would be √D, a placeholder).
+                    FarField::Scalar { far, .. } => {
+                        let (speed, damping) = match *far {
+                            ScalarFarField::Wave {
+                                speed_squared,
+                                damping,
+                            } => (speed_squared.sqrt(), damping),
+                            ScalarFarField::Diffusion { diffusivity } => (diffusivity.sqrt(), 0.0),
+                        };
+                        absorb::first_order::first_order_layer(
+                            &clouds,
+                            nodes,
+                            1,
+                            dt,
+                            |_| vec![speed],
+                            damping,
+                        )
+                    }
+                    FarField::Bond(far) => {
+                        let (cp, cs) = far.speeds;
+                        absorb::first_order::first_order_layer(
+                            &clouds,
+                            nodes,
+                            D,
+                            dt,
+                            |n| {
+                                let t = [-n[1], n[0]];
+                                (0..4)
+                                    .map(|e| {
+                                        let (a, b) = (e / 2, e % 2);
+                                        cp * n[a] * n[b] + cs * t[a] * t[b]
+                                    })
+                                    .collect()
+                            },
+                            0.0,
+                        )
+                    }
+                }
+            }
+        };
         self.dt = dt;
     }
 
-    /// Writes the layer's new values into the node field.
+    /// Writes the layer's new values into the node field (`components` values per node).
     pub fn overwrite(&self, values: &mut [f64]) {
-        for (a, &i) in self.layer.nodes.iter().enumerate() {
-            values[i as usize] = self.values[a];
-        }
+        self.scatter(&self.values, values);
     }
 
     /// Writes the layer's new rates (a wave's u̇) into the velocity field.
     pub fn overwrite_rates(&self, rates: &mut [f64]) {
+        self.scatter(&self.rates, rates);
+    }
+
+    fn scatter(&self, from: &[f64], to: &mut [f64]) {
+        let nc = self.layer.components;
         for (a, &i) in self.layer.nodes.iter().enumerate() {
-            rates[i as usize] = self.rates[a];
+            let i = i as usize;
+            to[i * nc..(i + 1) * nc].copy_from_slice(&from[a * nc..(a + 1) * nc]);
         }
     }
 
@@ -214,11 +302,7 @@ impl Probe {
         probes
             .iter()
             .map(|(name, p)| {
-                let distance =
-                    |x: &[f64; D]| x.iter().zip(p).map(|(a, b)| (a - b) * (a - b)).sum::<f64>();
-                let node = (0..positions.len())
-                    .min_by(|&a, &b| distance(&positions[a]).total_cmp(&distance(&positions[b])))
-                    .unwrap_or(0);
+                let node = nearest_node(positions, p);
                 let row = operator.rows.iter().position(|&i| i as usize == node);
                 Probe {
                     name: name.clone(),
@@ -250,6 +334,14 @@ impl Probe {
             (format!("probe/{}/energy_density", self.name), density),
         ]
     }
+}
+
+/// The node nearest point `p`.
+pub fn nearest_node<const D: usize>(positions: &[[f64; D]], p: &[f64]) -> usize {
+    let distance = |x: &[f64; D]| x.iter().zip(p).map(|(a, b)| (a - b) * (a - b)).sum::<f64>();
+    (0..positions.len())
+        .min_by(|&a, &b| distance(&positions[a]).total_cmp(&distance(&positions[b])))
+        .unwrap_or(0)
 }
 
 /// Σ_j w_ij (u_j − u_i)² over row `r`'s off-diagonal entries (i its node).

@@ -5,6 +5,7 @@
 pub mod dynamics;
 mod far_field;
 pub mod scalar;
+mod unbounded;
 
 pub use dynamics::DynamicSimulation;
 pub use scalar::ScalarSimulation;

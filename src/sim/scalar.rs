@@ -616,8 +616,11 @@ impl<const D: usize> ScalarSimulation<D> {
         match &self.wave {
             Some(w) => {
                 a.layer.values(field, &w.previous_field, &mut a.values);
-                a.layer
-                    .rates(&w.velocity, &w.previous_velocity, &mut a.rates);
+                a.layer.rates(
+                    [field, &w.previous_field],
+                    [&w.velocity, &w.previous_velocity],
+                    &mut a.rates,
+                );
             }
             None => a.layer.values(field, field, &mut a.values),
         }

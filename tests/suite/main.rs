@@ -4,6 +4,7 @@
 mod common;
 
 mod absorbing;
+mod absorbing_bond;
 mod architecture;
 mod checkpoint;
 mod cli;
