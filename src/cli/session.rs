@@ -169,6 +169,10 @@ fn run_session(
     start: impl FnOnce(Outlet) -> Result<(Driver, Vec<Timed>), Failure>,
 ) -> Result<RunSummary, Failure> {
     let serving = matches!(target, RecordTarget::Serve { .. });
+    // Ctrl-C is ours before the outlet opens: a served stream's runtime takes SIGINT for its
+    // own once it starts, and a signal that arrives in between would be swallowed (the run
+    // and then the serving wait would never see it).
+    let stop = stop_flag();
     let outlet = Outlet::open(&target).map_err(Failure::Runtime)?;
     // The session's driver closes its recordings at the end; the outlet kept here keeps a
     // served stream (and its replay buffer) up until Ctrl-C.
@@ -187,7 +191,6 @@ fn run_session(
             plan.path.display()
         );
     }
-    let stop = stop_flag();
     let bar = if quiet {
         ProgressBar::hidden()
     } else {
@@ -293,11 +296,12 @@ pub fn replay(
             file.display()
         )));
     }
+    let stop = stop_flag();
     let outlet = Outlet::open(&target).map_err(Failure::Runtime)?;
     let sent = crate::replay::send(file, &outlet).map_err(Failure::Runtime)?;
     println!("replayed {sent} messages from {}", file.display());
     if serving {
-        wait_while_serving(&stop_flag());
+        wait_while_serving(&stop);
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -318,7 +318,12 @@ impl<const D: usize> DynamicSimulation<D> {
                 scheme.damage_weights(&intact),
             ),
         };
-        let run = RunState::new(scene, stable, STAGES)?;
+        // The "absorbing" stage (last) is listed only where a layer exists.
+        let stages = match scene.absorbing {
+            Some(_) => STAGES,
+            None => &STAGES[..ABSORBING],
+        };
+        let run = RunState::new(scene, stable, stages)?;
 
         let nodes = &mut discretization.nodes;
         let n = nodes.len();
@@ -1048,22 +1053,24 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         for (k, p) in momentum.iter().enumerate() {
             scalars.push((format!("momentum/{}", ["x", "y", "z"][k]), *p));
         }
-        if !(self.scene.energy_circles.is_empty() && self.scene.damage_counts.is_empty()) {
-            let node_energy: Vec<f64> = strain_energy
+        let regions =
+            !(self.scene.energy_circles.is_empty() && self.scene.damage_counts.is_empty());
+        let layer_or_probes = self.absorbing.is_some() || !self.probes.is_empty();
+        // Kinetic plus strain energy per node, for the region metrics, the near field and probes.
+        let node_energy: Vec<f64> = if regions || layer_or_probes {
+            strain_energy
                 .iter()
                 .zip(&speed)
                 .zip(&mass_volumes)
                 .map(|((w, s), v)| w + 0.5 * self.density * v * s * s)
-                .collect();
+                .collect()
+        } else {
+            Vec::new()
+        };
+        if regions {
             self.region_metrics(&node_energy, &damage, &mut scalars);
         }
-        if self.absorbing.is_some() || !self.probes.is_empty() {
-            let node_energy: Vec<f64> = strain_energy
-                .iter()
-                .zip(&speed)
-                .zip(&mass_volumes)
-                .map(|((w, s), v)| w + 0.5 * self.density * v * s * s)
-                .collect();
+        if layer_or_probes {
             if let Some(b) = &self.absorbing {
                 scalars.push(("energy/near_field".to_string(), b.near_field(&node_energy)));
             }

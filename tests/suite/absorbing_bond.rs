@@ -248,7 +248,19 @@ fn scan_bond_stability() {
         let mut line = Vec::new();
         for n in 1..=steps {
             if sim.step().is_err() {
-                line.push(format!("diverged at {n}"));
+                // Where the growth sits: the node with the largest |u| (radius, angle).
+                let (x, y) = (sim.reference(), sim.positions());
+                let top = (0..x.len())
+                    .max_by(|&a, &b| {
+                        let d = |i: usize| (y[i][0] - x[i][0]).hypot(y[i][1] - x[i][1]);
+                        d(a).total_cmp(&d(b))
+                    })
+                    .unwrap();
+                line.push(format!(
+                    "diverged at {n}; largest |u| at r = {:.2} mm, θ = {:.1}°",
+                    1e3 * x[top][0].hypot(x[top][1]),
+                    x[top][1].atan2(x[top][0]).to_degrees()
+                ));
                 break;
             }
             if n % (steps / 10) == 0 {
