@@ -126,8 +126,14 @@ pub fn run(
             break;
         }
         let n = sim.steps_done();
-        if n.is_multiple_of(info.frame_every) || n == total {
-            emit(sim, sink, n == total);
+        let converged = sim.converged();
+        if n.is_multiple_of(info.frame_every) || n == total || converged {
+            emit(sim, sink, n == total || converged);
+        }
+        if converged {
+            sink.message("info", &format!("converged after {n} iterations"));
+            progress(n, total);
+            break;
         }
         progress(n, total);
     }

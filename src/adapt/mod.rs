@@ -12,3 +12,4 @@ pub mod motion;
 pub mod multiadaptive;
 pub mod multigrid;
 pub mod phase;
+pub mod splitting;

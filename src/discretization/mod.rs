@@ -2,6 +2,7 @@
 //! quadrature, the horizon (uniform or per node), the per-node store and the nodes each
 //! boundary layer selects.
 
+pub mod buckets;
 pub mod family;
 pub mod grid;
 pub mod layers;

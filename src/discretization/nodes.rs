@@ -321,6 +321,26 @@ impl<const D: usize> Nodes<D> {
         start..self.len()
     }
 
+    /// Splits node `parent` into `reference.len()` children of `volume` each: the first takes
+    /// the parent's index (its columns stay), the others are appended with copies of the
+    /// parent's columns (particle splitting, zeng2024 (30)). Returns the appended range.
+    pub fn split(
+        &mut self,
+        parent: usize,
+        reference: &[[f64; D]],
+        volume: f64,
+    ) -> std::ops::Range<usize> {
+        assert!(!reference.is_empty(), "split: at least one child");
+        self.base.reference[parent] = reference[0];
+        self.base.volumes[parent] = volume;
+        let rest = reference.len() - 1;
+        self.append(
+            &reference[1..],
+            &vec![volume; rest],
+            &vec![parent as u32; rest],
+        )
+    }
+
     /// Reorders every array: node k becomes the old node `order[k]` (a permutation of
     /// 0..len). Indices held elsewhere (families, masks) must be remapped by the caller.
     pub fn permute(&mut self, order: &[u32]) {

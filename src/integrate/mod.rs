@@ -1,5 +1,6 @@
 //! Time integrators and stable-step estimates.
 
+pub mod adr;
 pub mod linear;
 pub mod stability;
 pub mod verlet;

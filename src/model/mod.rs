@@ -2,4 +2,5 @@
 
 pub mod corrosion;
 pub mod diffusion;
+pub mod osb;
 pub mod pmb;

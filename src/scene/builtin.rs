@@ -30,6 +30,10 @@ const PRESETS: &[(&str, &str)] = &[
         include_str!("../../presets/corrosion-3d.toml"),
     ),
     (
+        "crack-opening",
+        include_str!("../../presets/crack-opening.toml"),
+    ),
+    (
         "diffusion-2d-manufactured",
         include_str!("../../presets/diffusion-2d-manufactured.toml"),
     ),

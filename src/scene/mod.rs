@@ -1,6 +1,8 @@
 //! Scenes: TOML presets (schema, units, variants) validated into a plain `Scene` in SI units.
 
 mod absorbing;
+mod state_based;
+pub use state_based::{OpeningSpec, StateBasedSpec};
 pub mod builtin;
 pub mod error;
 pub mod geometry;
@@ -57,6 +59,9 @@ pub struct Scene {
     pub multigrid: Option<MultigridSpec>,
     /// Unbounded-domain scenes: the absorbing layer at the truncation.
     pub absorbing: Option<AbsorbingSpec>,
+    /// OSB scenes (`material.model = "osb"`): the state-based material on a dual-horizon
+    /// discretization, its refinement and integrator.
+    pub state_based: Option<StateBasedSpec>,
     /// Scalar-wave scenes: χ and the damping d (the kernel is in `diffusion`).
     pub wave: Option<WaveSpec>,
     /// Gaussian pulses added to the initial scalar field.

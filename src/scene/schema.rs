@@ -43,6 +43,8 @@ pub struct Preset {
     /// An absorbing layer at the truncation (unbounded domains, thesis Chapter 4).
     #[serde(default)]
     pub absorbing: Option<AbsorbingTable>,
+    /// OSB: adaptive particle splitting (zeng2024 Sect. 3).
+    pub refinement: Option<RefinementTable>,
     /// A manufactured solution: gives the body force or source, the values held in
     /// `hold_reference` layers, and the error norm (3.79) reported in frames.
     pub reference: Option<ReferenceSpec>,
@@ -76,6 +78,11 @@ pub struct Discretization {
     pub volume_correction: bool,
     #[serde(default)]
     pub scheme: SchemeKind,
+    /// OSB only: the bonds' quadrature weights, "moments" (default: moment-matched volumes,
+    /// see `scheme::dual_horizon`) or "volume" (plain V_j, the paper without its surface
+    /// correction).
+    #[serde(default)]
+    pub bond_weights: Option<crate::scheme::dual_horizon::BondWeights>,
     /// WLS only: the auxiliary grid has spacing δ / collocation_factor (k_aux). Default: the
     /// papers' choice for the basis order and dimension (collocation sets of 5/11/13 in 1D,
     /// 29/49 in 2D, 123 in 3D).
@@ -330,6 +337,9 @@ pub enum ModelKind {
     /// Prototype microelastic brittle bond-based material (GPBM), (2.27)–(2.34).
     #[default]
     Pmb,
+    /// Ordinary state-based PD, Madenci–Oterkus form, on a dual-horizon discretization
+    /// (zeng2024 (3)–(14)); 2D dynamics only.
+    Osb,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -361,6 +371,10 @@ pub struct Material {
     pub interface_diffusivity: Option<Quantity>,
     /// Corrosion: C_sat; a solid node whose concentration drops below it turns liquid.
     pub saturation: Option<Quantity>,
+    /// OSB: Poisson's ratio ν (the bond-based law fixes it; the state-based law takes it).
+    pub poisson_ratio: Option<f64>,
+    /// OSB, 2D: the out-of-plane thickness h (volumes Δ²·h; default 1 m, energies per metre).
+    pub thickness: Option<Quantity>,
     /// Scalar waves: χ (m/s).
     pub wave_speed: Option<Quantity>,
     /// Scalar waves: d (1/s).
@@ -519,8 +533,15 @@ fn one() -> f64 {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TimeSpec {
-    /// Time step, absolute ("2 ns") or a fraction of the stable bound (3.8) ("0.5 stable").
-    pub dt: Measure,
+    /// Time step, absolute ("2 ns") or a fraction of the stable bound (3.8) ("0.5 stable");
+    /// not used by dynamic relaxation (its pseudo step is 1).
+    pub dt: Option<Measure>,
+    /// "verlet" (default) or "adr": adaptive dynamic relaxation to the static solution
+    /// (OSB scenes; `end` is then the iteration cap, "N steps").
+    #[serde(default)]
+    pub integrator: Option<IntegratorKind>,
+    /// ADR: the run stops when ‖F_int + F_ext‖ / ‖F_ext‖ falls below this (default 1e-6).
+    pub tolerance: Option<f64>,
     /// Duration, as an end time ("87 us") or a number of steps ("2000 steps").
     pub end: Measure,
     /// Permit Δt above the stable bound (the run is still stopped if it blows up).
@@ -548,6 +569,54 @@ pub struct MetricsSpec {
     /// `probe/<name>/{value,energy_density}` (a pulse passing, then what reflects).
     #[serde(default)]
     pub probe: Vec<ProbeTable>,
+    /// OSB: the crack opening at a crack mouth, logged as `opening/<name>` (m).
+    #[serde(default)]
+    pub opening: Vec<OpeningTable>,
+}
+
+/// The opening of a crack at its mouth: the mean displacement along `axis` of the particles
+/// nearest `mouth` on its upper side minus that on its lower side (upper and lower along
+/// `axis`), among the particles within one cell of the body's edge at the mouth.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OpeningTable {
+    pub name: String,
+    pub mouth: Point,
+    /// The axis normal to the crack faces (default 1, y).
+    #[serde(default = "y_axis")]
+    pub axis: usize,
+}
+
+fn y_axis() -> usize {
+    1
+}
+
+/// `[refinement]`: when particles split (zeng2024 (15)–(16)) and how deep.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RefinementTable {
+    /// φ_c of (15) (default 0.4, the paper's).
+    pub damage: Option<f64>,
+    /// α of (16) (default 0.5, the paper's).
+    pub strain_factor: Option<f64>,
+    /// Split generations (default 1, the paper's examples).
+    pub levels: Option<u8>,
+    /// false: the refinement is read but never applied (the coarse reference keeps the rest of
+    /// the preset).
+    #[serde(default = "yes_refine")]
+    pub enabled: bool,
+}
+
+fn yes_refine() -> bool {
+    true
+}
+
+/// The time integrator of an OSB scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum IntegratorKind {
+    Verlet,
+    Adr,
 }
 
 #[derive(Debug, Clone, Deserialize)]

@@ -139,6 +139,17 @@ pub(super) fn validate(
         }
         _ => (Some(material(p, ctx, physics)?), None),
     };
+    let young = material.as_ref().and_then(|m| match m.constants.stiffness {
+        crate::model::pmb::Stiffness::YoungsModulus(e) => Some(e),
+        crate::model::pmb::Stiffness::Micromodulus(_) => None,
+    });
+    let state_based = super::state_based::state_based(p, ctx, dim, young)?;
+    if state_based.is_some() && scheme.kind != SchemeKind::Standard {
+        return Err(ctx.error(
+            "discretization.scheme",
+            "material.model = \"osb\" runs its dual-horizon standard scheme only",
+        ));
+    }
     if physics != Physics::Dynamics && !p.precracks.is_empty() {
         return Err(ctx.error("precracks", "pre-cracks need physics = \"dynamics\""));
     }
@@ -376,6 +387,7 @@ pub(super) fn validate(
         hybrid,
         multigrid,
         absorbing,
+        state_based,
         wave,
         initial_pulses,
         seed: d.seed,
@@ -987,7 +999,19 @@ fn velocity_field(v: &VelocityField, dim: usize, path: &str) -> Result<InitialVe
 }
 
 fn time_spec(t: &super::schema::TimeSpec, ctx: &ErrorContext) -> Result<TimeSpec, SceneError> {
-    let step = match t.dt {
+    let adr = t.integrator == Some(super::schema::IntegratorKind::Adr);
+    let dt = match (t.dt, adr) {
+        (Some(dt), _) => dt,
+        // Dynamic relaxation iterates with a unit pseudo step.
+        (None, true) => Measure::Si(1.0),
+        (None, false) => {
+            return Err(ctx.error(
+                "time.dt",
+                "give the time step, e.g. \"2 ns\" or \"0.7 stable\"",
+            ));
+        }
+    };
+    let step = match dt {
         Measure::Si(dt) => StepSize::Absolute(positive(ctx, "time.dt", dt)?),
         Measure::Relative(f, Relative::StableStep) => {
             StepSize::FractionOfStable(positive(ctx, "time.dt", f)?)

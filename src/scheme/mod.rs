@@ -2,6 +2,7 @@
 
 use rayon::prelude::*;
 
+pub mod dual_horizon;
 pub mod runs;
 pub mod standard;
 pub mod wls;

@@ -15,7 +15,7 @@ use crate::frame::{ClassField, Frame, NodeField};
 use crate::integrate::{self, stability, verlet};
 use crate::metrics;
 use crate::model::pmb::PmbLaw;
-use crate::scene::{CoarseScheme, Condition, InitialVelocity, Scene, SceneError};
+use crate::scene::{CoarseScheme, Condition, Scene, SceneError};
 use crate::scheme::standard::{NodeTerms, Standard};
 use crate::scheme::wls_rows::WlsRows;
 use crate::solver::{
@@ -387,38 +387,9 @@ impl<const D: usize> DynamicSimulation<D> {
     }
 
     fn apply_initial_velocity(&mut self) {
-        let (lo, hi) = self.scene.solid.bounds();
         let nodes = &mut self.discretization.nodes;
         let velocities = nodes.fields.get_mut(self.columns.velocity);
-        for field in &self.scene.initial_velocity {
-            for (v, x) in velocities.iter_mut().zip(nodes.base.reference()) {
-                match *field {
-                    InitialVelocity::Uniform(ref value) => {
-                        for k in 0..D {
-                            v[k] += value[k];
-                        }
-                    }
-                    InitialVelocity::Ramp {
-                        component,
-                        axis,
-                        from,
-                        to,
-                    } => {
-                        let t = (x[axis] - lo[axis]) / (hi[axis] - lo[axis]);
-                        v[component] += from + t * (to - from);
-                    }
-                    InitialVelocity::Sine {
-                        component,
-                        axis,
-                        amplitude,
-                        modes,
-                    } => {
-                        let t = (x[axis] - lo[axis]) / (hi[axis] - lo[axis]);
-                        v[component] += amplitude * (std::f64::consts::PI * modes * t).sin();
-                    }
-                }
-            }
-        }
+        super::add_initial_velocity(&self.scene, nodes.base.reference(), velocities);
     }
 
     /// Displacement pulses (thesis (4.168)): y = x + Σ u⁰(x).

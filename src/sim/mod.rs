@@ -2,15 +2,17 @@
 //! dimension-erased [`Stepper`]. Nothing outside this module names a concrete simulation type
 //! (checked by `tests/architecture.rs`).
 
+pub mod dual_horizon;
 pub mod dynamics;
 mod far_field;
 pub mod scalar;
 mod unbounded;
 
+pub use dual_horizon::DualHorizonSimulation;
 pub use dynamics::DynamicSimulation;
 pub use scalar::ScalarSimulation;
 
-use crate::scene::{Physics, Scene, SceneError};
+use crate::scene::{InitialVelocity, Physics, Scene, SceneError};
 use crate::solver::Stepper;
 
 /// Builds the simulation of a scene, in its dimension and for its physics.
@@ -20,6 +22,9 @@ pub fn build(scene: &Scene) -> Result<Box<dyn Stepper>, SceneError> {
     ) -> Result<Box<dyn Stepper>, SceneError> {
         Ok(Box::new(sim?))
     }
+    if scene.state_based.is_some() {
+        return boxed(DualHorizonSimulation::new(scene));
+    }
     match (scene.physics, scene.dim) {
         (Physics::Dynamics, 1) => boxed(DynamicSimulation::<1>::new(scene)),
         (Physics::Dynamics, 2) => boxed(DynamicSimulation::<2>::new(scene)),
@@ -27,5 +32,43 @@ pub fn build(scene: &Scene) -> Result<Box<dyn Stepper>, SceneError> {
         (_, 1) => boxed(ScalarSimulation::<1>::new(scene)),
         (_, 2) => boxed(ScalarSimulation::<2>::new(scene)),
         (_, _) => boxed(ScalarSimulation::<3>::new(scene)),
+    }
+}
+
+/// Adds the scene's `[[initial.velocity]]` fields at the reference positions.
+pub(crate) fn add_initial_velocity<const D: usize>(
+    scene: &Scene,
+    reference: &[[f64; D]],
+    velocities: &mut [[f64; D]],
+) {
+    let (lo, hi) = scene.solid.bounds();
+    for field in &scene.initial_velocity {
+        for (v, x) in velocities.iter_mut().zip(reference) {
+            match *field {
+                InitialVelocity::Uniform(ref value) => {
+                    for k in 0..D {
+                        v[k] += value[k];
+                    }
+                }
+                InitialVelocity::Ramp {
+                    component,
+                    axis,
+                    from,
+                    to,
+                } => {
+                    let t = (x[axis] - lo[axis]) / (hi[axis] - lo[axis]);
+                    v[component] += from + t * (to - from);
+                }
+                InitialVelocity::Sine {
+                    component,
+                    axis,
+                    amplitude,
+                    modes,
+                } => {
+                    let t = (x[axis] - lo[axis]) / (hi[axis] - lo[axis]);
+                    v[component] += amplitude * (std::f64::consts::PI * modes * t).sin();
+                }
+            }
+        }
     }
 }

@@ -175,6 +175,12 @@ pub trait Stepper: Send {
         None
     }
 
+    /// True when an iterative solve has met its tolerance (dynamic relaxation): the run stops
+    /// there, before its step cap.
+    fn converged(&self) -> bool {
+        false
+    }
+
     /// Further lines for `check` (an absorbing layer's conditioning).
     fn check_notes(&self) -> Vec<String> {
         Vec::new()

@@ -13,6 +13,7 @@ mod control_cli;
 mod corrosion;
 mod diffusion_manufactured;
 mod driver;
+mod dual_horizon;
 mod dynamics;
 mod export;
 mod hybrid;

@@ -1,0 +1,207 @@
+//! Adaptive particle splitting (zeng2024 Sect. 3, (15)–(23), (30); extraction
+//! `seed-002-dual-horizon` §3, whose ambiguities are resolved as it recommends):
+//! - criteria: φ_k > φ_c (15), or min_i ε_ii > α s_c(δ_k) (16) read on the strain itself
+//!   (ambiguity 2), ε_ii in the regression form of (17) (ambiguity 1);
+//! - a parent becomes 2ᵈ children at the sub-cell centres x_k ± Δ_k/4 (ambiguity 3), placed in
+//!   the current configuration with the parent's normal stretches (18), each with a quarter of
+//!   its volume and mass, its velocity and half its horizon (30); one level by default (the
+//!   paper's examples);
+//! - families: the children's from the parent's neighbourhood (22) and, for every particle
+//!   whose horizon can reach a child, its own row again (ambiguity 4); only those rows are
+//!   searched and refitted;
+//! - bond states (ambiguity 5): a bond of or to a child inherits the state of the bond between
+//!   the particles it replaces (either direction), sibling bonds start intact, a new bond that
+//!   crosses a pre-crack is cut, and the next force pass breaks any bond already past s_c;
+//! - quadrature weights of the new rows are fitted over their bonds not cut by a pre-crack
+//!   (the pre-crack is a surface; bonds broken during the run soften the material, as they do
+//!   for the parents, whose weights were fitted before the run).
+
+use crate::discretization::buckets::Buckets;
+use crate::discretization::family::crosses;
+use crate::discretization::{Field, Nodes};
+use crate::model::osb::{OsbHorizon, OsbMaterial};
+use crate::scene::CrackGeometry;
+use crate::scheme::dual_horizon::{Body, DualBonds, NewRow, family_of};
+
+/// When a particle splits, and how deep.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SplitRule {
+    /// φ_c of (15).
+    pub damage: f64,
+    /// α of (16), in (0, 1).
+    pub strain_factor: f64,
+    /// Refinement levels (1: parents split once).
+    pub levels: u8,
+}
+
+impl SplitRule {
+    /// Whether particle k meets (15) or (16).
+    pub fn wants(&self, damage: f64, strains: [f64; 2], constants: &OsbHorizon, level: u8) -> bool {
+        level < self.levels
+            && (damage > self.damage
+                || strains[0].min(strains[1]) > self.strain_factor * constants.critical_stretch)
+    }
+}
+
+/// The per-particle columns a split writes.
+#[derive(Debug, Clone, Copy)]
+pub struct SplitColumns {
+    pub position: Field<[f64; 2]>,
+    pub constants: Field<OsbHorizon>,
+    pub level: Field<u8>,
+    /// Δ_k, the particle's cell length.
+    pub spacing: Field<f64>,
+}
+
+/// The sub-cell offsets (ξ, η) of (18)–(19).
+const SIGNS: [[f64; 2]; 4] = [[-1.0, -1.0], [1.0, -1.0], [-1.0, 1.0], [1.0, 1.0]];
+
+/// A parent's four children: reference positions (19) and current positions (18).
+type Placement = ([[f64; 2]; 4], [[f64; 2]; 4]);
+
+/// What one splitting pass did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SplitReport {
+    pub parents: usize,
+    /// Rows searched again (children and the particles that see them).
+    pub rows: usize,
+}
+
+/// Splits `parents` (distinct, all below the level cap) in place: the store grows by 3 per
+/// parent, `bonds` gets the new rows, `buckets` the new positions.
+#[allow(clippy::too_many_arguments)]
+pub fn split(
+    parents: &[u32],
+    nodes: &mut Nodes<2>,
+    columns: &SplitColumns,
+    bonds: &mut DualBonds,
+    buckets: &mut Buckets,
+    material: &OsbMaterial,
+    precracks: &[CrackGeometry],
+) -> SplitReport {
+    if parents.is_empty() {
+        return SplitReport::default();
+    }
+    let old_count = nodes.len();
+    // The children's places, from the parents' state before anything moves.
+    let placements: Vec<Placement> = {
+        let body = Body {
+            reference: nodes.reference(),
+            volumes: nodes.volumes(),
+            constants: nodes.fields.get(columns.constants),
+            thickness: material.thickness,
+        };
+        let positions = nodes.fields.get(columns.position);
+        let spacing = nodes.fields.get(columns.spacing);
+        parents
+            .iter()
+            .map(|&p| {
+                let p = p as usize;
+                let strain = bonds.normal_strains(p, &body, positions);
+                let quarter = 0.25 * spacing[p];
+                let (x, y) = (body.reference[p], positions[p]);
+                let reference = SIGNS.map(|s| [x[0] + quarter * s[0], x[1] + quarter * s[1]]);
+                let current = SIGNS.map(|s| {
+                    [
+                        y[0] + quarter * (1.0 + strain[0]) * s[0],
+                        y[1] + quarter * (1.0 + strain[1]) * s[1],
+                    ]
+                });
+                (reference, current)
+            })
+            .collect()
+    };
+    // Old particles whose horizon may reach a child: within δ_max + Δ_p/2 of a parent (the
+    // bucket cell is at least that wide).
+    let mut affected = vec![false; old_count];
+    {
+        let reference = nodes.reference();
+        for &p in parents {
+            buckets.within(reference, &reference[p as usize], buckets.cell(), |j| {
+                affected[j as usize] = true;
+            });
+        }
+    }
+    // parent_of[i]: the parent whose child node i is (new indices), or u32::MAX.
+    let mut parent_of = vec![u32::MAX; old_count + 3 * parents.len()];
+    for (&p, (reference, current)) in parents.iter().zip(&placements) {
+        let p = p as usize;
+        let (old_x, volume) = (nodes.reference()[p], nodes.volumes()[p] * 0.25);
+        let added = nodes.split(p, reference, volume);
+        buckets.relocate(p as u32, &old_x, &reference[0]);
+        let children: Vec<usize> = std::iter::once(p).chain(added).collect();
+        let parent_constants = nodes.fields.get(columns.constants)[p];
+        let child_constants = material.at(0.5 * parent_constants.horizon);
+        for (c, &i) in children.iter().enumerate() {
+            nodes.fields.get_mut(columns.position)[i] = current[c];
+            nodes.fields.get_mut(columns.constants)[i] = child_constants;
+            nodes.fields.get_mut(columns.level)[i] += 1;
+            nodes.fields.get_mut(columns.spacing)[i] *= 0.5;
+            if i != p {
+                buckets.insert(i as u32, &reference[c]);
+            }
+            parent_of[i] = p as u32;
+            if i < old_count {
+                affected[i] = false;
+            }
+        }
+    }
+    let body = Body {
+        reference: nodes.reference(),
+        volumes: nodes.volumes(),
+        constants: nodes.fields.get(columns.constants),
+        thickness: material.thickness,
+    };
+    let rows_to_search: Vec<usize> = (0..nodes.len())
+        .filter(|&i| parent_of[i] != u32::MAX || (i < old_count && affected[i]))
+        .collect();
+    let inherited = |a: usize, b: usize| -> u8 {
+        let (pa, pb) = (parent_of[a], parent_of[b]);
+        if pa != u32::MAX && pa == pb {
+            return 1;
+        }
+        let origin = |i: usize, p: u32| if p == u32::MAX { i as u32 } else { p };
+        let (oa, ob) = (origin(a, pa), origin(b, pb));
+        bonds
+            .state(oa as usize, ob)
+            .or_else(|| bonds.state(ob as usize, oa))
+            .unwrap_or(1)
+    };
+    let rows: Vec<NewRow> = rows_to_search
+        .iter()
+        .map(|&k| {
+            let mut found = Vec::new();
+            let delta = body.constants[k].horizon;
+            buckets.within(body.reference, &body.reference[k], delta, |j| found.push(j));
+            let neighbors = family_of(k, &body, found.into_iter());
+            let fitted: Vec<u8> = neighbors
+                .iter()
+                .map(|&j| {
+                    let (a, b) = (&body.reference[k], &body.reference[j as usize]);
+                    u8::from(
+                        !precracks
+                            .iter()
+                            .any(|c| crosses(c, a, b) || crosses(c, b, a)),
+                    )
+                })
+                .collect();
+            let states = neighbors
+                .iter()
+                .zip(&fitted)
+                .map(|(&j, &f)| if f == 0 { 0 } else { inherited(k, j as usize) })
+                .collect();
+            NewRow {
+                particle: k as u32,
+                neighbors,
+                states,
+                fitted,
+            }
+        })
+        .collect();
+    let report = SplitReport {
+        parents: parents.len(),
+        rows: rows.len(),
+    };
+    bonds.replace_rows(&body, &rows);
+    report
+}

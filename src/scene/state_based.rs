@@ -1,0 +1,195 @@
+//! `material.model = "osb"`, `[refinement]`, `time.integrator = "adr"` and `[[metrics.opening]]`
+//! → the scene's [`StateBasedSpec`] (zeng2024; defaults are the paper's: φ_c = 0.4, α = 0.5,
+//! one refinement level).
+
+use super::error::{ErrorContext, SceneError};
+use super::schema::{IntegratorKind, ModelKind, Physics, Preset};
+use super::validate::{point, positive};
+use crate::adapt::splitting::SplitRule;
+use crate::model::osb::OsbMaterial;
+use crate::scheme::dual_horizon::BondWeights;
+
+/// ADR's residual tolerance where a preset gives none.
+pub const DEFAULT_TOLERANCE: f64 = 1e-6;
+
+/// An OSB scene on a dual-horizon discretization.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateBasedSpec {
+    pub material: OsbMaterial,
+    pub weights: BondWeights,
+    /// `None`: no particle splits.
+    pub refinement: Option<SplitRule>,
+    /// ADR's tolerance; `None`: velocity-Verlet.
+    pub relaxation: Option<f64>,
+    pub openings: Vec<OpeningSpec>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct OpeningSpec {
+    pub name: String,
+    pub mouth: Vec<f64>,
+    pub axis: usize,
+}
+
+fn refuse(ctx: &ErrorContext, field: &str, what: &str) -> SceneError {
+    ctx.error(field, format!("{what} needs material.model = \"osb\""))
+}
+
+pub(super) fn state_based(
+    p: &Preset,
+    ctx: &ErrorContext,
+    dim: usize,
+    young: Option<f64>,
+) -> Result<Option<StateBasedSpec>, SceneError> {
+    let m = &p.material;
+    let adr = p
+        .time
+        .as_ref()
+        .is_some_and(|t| t.integrator == Some(IntegratorKind::Adr));
+    if m.model != ModelKind::Osb {
+        if p.refinement.is_some() {
+            return Err(refuse(ctx, "refinement", "particle splitting"));
+        }
+        if adr {
+            return Err(refuse(ctx, "time.integrator", "dynamic relaxation"));
+        }
+        if !p.metrics.opening.is_empty() {
+            return Err(refuse(ctx, "metrics.opening", "the crack-opening metric"));
+        }
+        for (field, given) in [
+            ("material.poisson_ratio", m.poisson_ratio.is_some()),
+            ("material.thickness", m.thickness.is_some()),
+            (
+                "discretization.bond_weights",
+                p.discretization.bond_weights.is_some(),
+            ),
+        ] {
+            if given {
+                return Err(refuse(ctx, field, "this field"));
+            }
+        }
+        return Ok(None);
+    }
+    if dim != 2 || p.physics != Physics::Dynamics {
+        return Err(ctx.error(
+            "material.model",
+            format!(
+                "\"osb\" runs 2D dynamics; this scene is {dim}D {:?}",
+                p.physics
+            ),
+        ));
+    }
+    for (field, given) in [
+        ("material.micromodulus", m.micromodulus.is_some()),
+        ("material.critical_stretch", m.critical_stretch.is_some()),
+        ("multigrid", p.multigrid.is_some()),
+        ("absorbing", p.absorbing.is_some()),
+    ] {
+        if given {
+            return Err(ctx.error(
+                field,
+                "is not available with material.model = \"osb\" (E, ν and G_c give its constants)",
+            ));
+        }
+    }
+    let Some(youngs_modulus) = young else {
+        return Err(ctx.error("material.youngs_modulus", "\"osb\" needs E"));
+    };
+    let poisson_ratio = match m.poisson_ratio {
+        Some(nu) if nu > -1.0 && nu < 0.5 => nu,
+        Some(nu) => {
+            return Err(ctx.error(
+                "material.poisson_ratio",
+                format!("must lie in (-1, 0.5), got {nu}"),
+            ));
+        }
+        None => return Err(ctx.error("material.poisson_ratio", "\"osb\" needs ν")),
+    };
+    let thickness = match m.thickness {
+        Some(h) => positive(ctx, "material.thickness", h.si())?,
+        None => 1.0,
+    };
+    let fracture_energy = match m.fracture_energy {
+        Some(g) => Some(positive(ctx, "material.fracture_energy", g.si())?),
+        None => None,
+    };
+    let refinement = match &p.refinement {
+        Some(r) if r.enabled => {
+            let damage = r.damage.unwrap_or(0.4);
+            if !(0.0..1.0).contains(&damage) {
+                return Err(ctx.error(
+                    "refinement.damage",
+                    format!("φ_c must lie in [0, 1), got {damage}"),
+                ));
+            }
+            let strain_factor = r.strain_factor.unwrap_or(0.5);
+            if !(strain_factor > 0.0 && strain_factor < 1.0) {
+                return Err(ctx.error(
+                    "refinement.strain_factor",
+                    format!("α must lie in (0, 1), got {strain_factor}"),
+                ));
+            }
+            let levels = r.levels.unwrap_or(1);
+            if !(1..=3).contains(&levels) {
+                return Err(ctx.error(
+                    "refinement.levels",
+                    format!("must be 1, 2 or 3, got {levels}"),
+                ));
+            }
+            Some(SplitRule {
+                damage,
+                strain_factor,
+                levels,
+            })
+        }
+        _ => None,
+    };
+    let relaxation = match (adr, p.time.as_ref().and_then(|t| t.tolerance)) {
+        (true, Some(t)) if t > 0.0 && t < 1.0 => Some(t),
+        (true, Some(t)) => {
+            return Err(ctx.error(
+                "time.tolerance",
+                format!("the relative residual must lie in (0, 1), got {t}"),
+            ));
+        }
+        (true, None) => Some(DEFAULT_TOLERANCE),
+        (false, Some(_)) => {
+            return Err(ctx.error(
+                "time.tolerance",
+                "is read by time.integrator = \"adr\" only",
+            ));
+        }
+        (false, None) => None,
+    };
+    let openings = p
+        .metrics
+        .opening
+        .iter()
+        .enumerate()
+        .map(|(i, o)| {
+            let path = format!("metrics.opening[{i}]");
+            if o.axis >= dim {
+                return Err(format!("{path}.axis: must be 0 or 1, got {}", o.axis));
+            }
+            Ok(OpeningSpec {
+                name: o.name.clone(),
+                mouth: point(&o.mouth, dim, &format!("{path}.mouth"))?,
+                axis: o.axis,
+            })
+        })
+        .collect::<Result<Vec<_>, String>>()
+        .map_err(|m| ctx.from_path_message(&m))?;
+    Ok(Some(StateBasedSpec {
+        material: OsbMaterial {
+            youngs_modulus,
+            poisson_ratio,
+            plane: m.plane,
+            thickness,
+            fracture_energy,
+        },
+        weights: p.discretization.bond_weights.unwrap_or_default(),
+        refinement,
+        relaxation,
+        openings,
+    }))
+}

@@ -1,0 +1,449 @@
+//! Dual-horizon OSB with particle splitting and ADR (issue 17; zeng2024): patch tests of the
+//! operator against the classical energy and stress, rigid motions across a size change,
+//! conservation through splits, and the crack opening against Tada's formula.
+
+use peridyn::adapt::splitting::{self, SplitColumns};
+use peridyn::discretization::Nodes;
+use peridyn::discretization::buckets::Buckets;
+use peridyn::model::osb::{OsbHorizon, OsbMaterial};
+use peridyn::model::pmb::Plane;
+use peridyn::scene::Scene;
+use peridyn::scheme::dual_horizon::{Body, BondWeights, DualBonds, ParticleTerms};
+use peridyn::sim::DualHorizonSimulation;
+use peridyn::solver::Stepper;
+
+const DX: f64 = 1e-3;
+const M: f64 = 3.015;
+
+fn material(nu: f64, plane: Plane) -> OsbMaterial {
+    OsbMaterial {
+        youngs_modulus: 200e9,
+        poisson_ratio: nu,
+        plane,
+        thickness: 1e-3,
+        fracture_energy: None,
+    }
+}
+
+/// An n × n cell-centred lattice at DX.
+fn lattice(n: usize) -> Vec<[f64; 2]> {
+    (0..n * n)
+        .map(|k| [((k % n) as f64 + 0.5) * DX, ((k / n) as f64 + 0.5) * DX])
+        .collect()
+}
+
+/// Positions of a homogeneous deformation y = x + ε x (ε symmetric) or a rigid motion.
+fn deform(x: &[[f64; 2]], f: [[f64; 2]; 2], shift: [f64; 2]) -> Vec<[f64; 2]> {
+    x.iter()
+        .map(|p| {
+            [
+                f[0][0] * p[0] + f[0][1] * p[1] + shift[0],
+                f[1][0] * p[0] + f[1][1] * p[1] + shift[1],
+            ]
+        })
+        .collect()
+}
+
+/// Relative error of W and the largest relative stress error over the particles at least
+/// `inset` from every edge of an n × n lattice, for strain ε.
+fn patch_errors(
+    m: &OsbMaterial,
+    weights: BondWeights,
+    strain: [[f64; 2]; 2],
+    n: usize,
+    inset: f64,
+) -> (f64, f64) {
+    let x = lattice(n);
+    let volumes = vec![DX * DX * m.thickness; x.len()];
+    let constants = vec![m.at(M * DX); x.len()];
+    let body = Body {
+        reference: &x,
+        volumes: &volumes,
+        constants: &constants,
+        thickness: m.thickness,
+    };
+    let buckets = Buckets::new(&x, M * DX * 1.01, DX);
+    let mut bonds = DualBonds::build(&body, &buckets, weights);
+    if std::env::var("SHOW").is_ok() {
+        println!("{} moment fits fell back", bonds.fallbacks);
+    }
+    let f = [
+        [1.0 + strain[0][0], strain[0][1]],
+        [strain[1][0], 1.0 + strain[1][1]],
+    ];
+    let y = deform(&x, f, [0.0; 2]);
+    let mut terms = vec![ParticleTerms::default(); x.len()];
+    bonds.evaluate(&body, &y, &mut terms);
+    let (w_classical, s_classical) = m.classical(strain);
+    let s_scale = s_classical
+        .iter()
+        .flatten()
+        .fold(0.0f64, |a, s| a.max(s.abs()));
+    let side = n as f64 * DX;
+    let (mut w_err, mut s_err) = (0.0f64, 0.0f64);
+    for (k, p) in x.iter().enumerate() {
+        if p.iter().any(|&c| c < inset || c > side - inset) {
+            continue;
+        }
+        // The corner particles: a quarter horizon cannot carry the zero shear moment with
+        // positive weights, so their fit falls back to scalar factors (`moment_fit`).
+        if p.iter().all(|&c| c < DX || c > side - DX) {
+            continue;
+        }
+        let e = (terms[k].energy_density / w_classical - 1.0).abs();
+        if e > 1e-2 && std::env::var("SHOW").is_ok() {
+            println!(
+                "particle {k} at {:?}: W error {e:.3e}",
+                [p[0] / DX, p[1] / DX]
+            );
+        }
+        w_err = w_err.max(e);
+        let s = bonds.stress(k, &body);
+        for i in 0..2 {
+            for j in 0..2 {
+                s_err = s_err.max((s[i][j] - s_classical[i][j]).abs() / s_scale);
+            }
+        }
+    }
+    (w_err, s_err)
+}
+
+/// zeng2024 §1 patch test (issue 17): a homogeneous strain gives the classical energy density
+/// and stress within 1 % away from the boundary at ν = 0.2 and 0.33, δ = 3.015 Δ. The plain
+/// volumes of the paper's quadrature (without its surface correction) miss 1 % in the bulk
+/// (the test can fail); the moment-matched weights meet it, and at the free edges too (all
+/// but the four corner particles, whose fit falls back to scalar factors).
+#[test]
+fn homogeneous_strain_gives_the_classical_energy_and_stress() {
+    // A general small strain: both normal components and a shear.
+    let strain = [[1.0e-4, 2.0e-5], [2.0e-5, -3.0e-5]];
+    for (nu, plane) in [
+        (0.2, Plane::Stress),
+        (0.33, Plane::Stress),
+        (0.2, Plane::Strain),
+    ] {
+        let m = material(nu, plane);
+        let (w, s) = patch_errors(&m, BondWeights::Moments, strain, 21, 4.0 * DX);
+        println!("ν = {nu} {plane:?}: moments, bulk: W {w:.2e}, σ {s:.2e}");
+        assert!(w < 1e-2 && s < 1e-2, "moments, bulk: W {w}, σ {s}");
+        let (w_edge, s_edge) = patch_errors(&m, BondWeights::Moments, strain, 21, 0.0);
+        println!("ν = {nu} {plane:?}: moments, every particle: W {w_edge:.2e}, σ {s_edge:.2e}");
+        assert!(
+            w_edge < 1e-2 && s_edge < 1e-2,
+            "moments, edges: W {w_edge}, σ {s_edge}"
+        );
+        let (w_plain, s_plain) = patch_errors(&m, BondWeights::Volume, strain, 21, 4.0 * DX);
+        println!("ν = {nu} {plane:?}: plain volumes, bulk: W {w_plain:.2e}, σ {s_plain:.2e}");
+        assert!(
+            w_plain.max(s_plain) > 1e-2,
+            "the plain quadrature misses 1 %"
+        );
+    }
+}
+
+/// A lattice whose right half has split once: the DH body of the size-change tests.
+struct Refined {
+    nodes: Nodes<2>,
+    columns: SplitColumns,
+    bonds: DualBonds,
+    material: OsbMaterial,
+}
+
+impl Refined {
+    fn new(n: usize, weights: BondWeights) -> Refined {
+        let material = material(0.25, Plane::Stress);
+        let x = lattice(n);
+        let volumes = vec![DX * DX * material.thickness; x.len()];
+        let mut nodes = Nodes::new(x.clone(), volumes);
+        let columns = SplitColumns {
+            position: nodes.fields.add_values("position", x.clone()),
+            constants: nodes.fields.add("constants", material.at(M * DX)),
+            level: nodes.fields.add("level", 0u8),
+            spacing: nodes.fields.add("spacing", DX),
+        };
+        let mut buckets = Buckets::new(&x, (M + 1.0) * DX, DX);
+        let mut bonds = {
+            let body = Body {
+                reference: nodes.reference(),
+                volumes: nodes.volumes(),
+                constants: nodes.fields.get(columns.constants),
+                thickness: material.thickness,
+            };
+            DualBonds::build(&body, &buckets, weights)
+        };
+        let side = n as f64 * DX;
+        let parents: Vec<u32> = (0..x.len() as u32)
+            .filter(|&k| x[k as usize][0] > 0.5 * side)
+            .collect();
+        splitting::split(
+            &parents,
+            &mut nodes,
+            &columns,
+            &mut bonds,
+            &mut buckets,
+            &material,
+            &[],
+        );
+        Refined {
+            nodes,
+            columns,
+            bonds,
+            material,
+        }
+    }
+
+    /// Forces at positions y.
+    fn forces(&mut self, y: &[[f64; 2]]) -> Vec<ParticleTerms> {
+        let body = Body {
+            reference: self.nodes.reference(),
+            volumes: self.nodes.volumes(),
+            constants: self.nodes.fields.get(self.columns.constants),
+            thickness: self.material.thickness,
+        };
+        let mut terms = vec![ParticleTerms::default(); y.len()];
+        self.bonds.evaluate(&body, y, &mut terms);
+        terms
+    }
+
+    /// A bulk bond force scale: one parent bond at a stretch of 1e-3, the order of a brittle
+    /// solid's s_c (round-off of positions ~1e-2 m at 1 mm bonds is a stretch of ~1e-15, so a
+    /// rigid motion's forces are ~1e-12 of it).
+    fn bond_force_scale(&self) -> f64 {
+        let c: &OsbHorizon = &self.nodes.fields.get(self.columns.constants)[0];
+        let v = DX * DX * self.material.thickness;
+        2.0 * c.horizon * c.b * 1e-3 * v * v
+    }
+}
+
+/// zeng2024 §2 (issue 17): particles of different sizes interact without ghost forces — a
+/// rigid translation and a finite rigid rotation across a size change give zero force on every
+/// particle to 1e-10 of a bulk bond force; a homogeneous strain's interface force is reported.
+#[test]
+fn rigid_motions_across_a_size_change_give_no_force() {
+    let mut body = Refined::new(16, BondWeights::Moments);
+    let n = body.nodes.len();
+    assert_eq!(n, 16 * 8 + 4 * 16 * 8, "the right half split once");
+    let x = body.nodes.reference().to_vec();
+    let scale = body.bond_force_scale();
+    let (c, s) = (0.3f64.cos(), 0.3f64.sin());
+    for (name, f, shift) in [
+        ("translation", [[1.0, 0.0], [0.0, 1.0]], [3e-4, -2e-4]),
+        ("rotation 0.3 rad", [[c, -s], [s, c]], [1e-3, 5e-4]),
+    ] {
+        let y = deform(&x, f, shift);
+        let terms = body.forces(&y);
+        let worst = terms
+            .iter()
+            .map(|t| t.force[0].hypot(t.force[1]))
+            .fold(0.0f64, f64::max);
+        println!("{name}: largest force / bond force {:.2e}", worst / scale);
+        assert!(worst <= 1e-10 * scale, "{name}: {worst} vs scale {scale}");
+    }
+    // A homogeneous strain: zero in each uniform region's interior, a residual at the size
+    // change (DH-PD is not exact there for a non-constant strain energy of the two sizes).
+    let e = 1e-4;
+    let y = deform(&x, [[1.0 + e, 0.0], [0.0, 1.0]], [0.0; 2]);
+    let terms = body.forces(&y);
+    let side = 16.0 * DX;
+    let (mut interface, mut interior) = (0.0f64, 0.0f64);
+    for (k, p) in x.iter().enumerate() {
+        let f = terms[k].force[0].hypot(terms[k].force[1]);
+        let inner = p.iter().all(|&q| q > 4.0 * DX && q < side - 4.0 * DX);
+        if (p[0] - 0.5 * side).abs() < 3.5 * DX {
+            interface = interface.max(f);
+        } else if inner {
+            interior = interior.max(f);
+        }
+    }
+    println!(
+        "uniform strain 1e-4: interface force / bond force {:.3e}, interior {:.2e}",
+        interface / scale,
+        interior / scale
+    );
+    assert!(interior <= 1e-9 * scale, "interior {interior}");
+}
+
+/// Tada's crack-mouth opening d0 = 4σa/E f(a/L), zeng2024 (31)–(32).
+fn tada(stress: f64, crack: f64, width: f64, young: f64) -> f64 {
+    let c = (std::f64::consts::PI * crack / (2.0 * width)).cos();
+    4.0 * stress * crack / young * (1.46 + 3.42 * (1.0 - c)) / (c * c)
+}
+
+#[test]
+fn tada_formula_reproduces_the_printed_values() {
+    // zeng2024 Table 2, "Analytic Formula" (μm), at L = 50 mm.
+    for (a, printed) in [(5.0, 1.5398), (10.0, 3.5984), (25.0, 24.6169)] {
+        let d = tada(10e6, a * 1e-3, 50e-3, 200e9) * 1e6;
+        assert!((d - printed).abs() < 1e-4, "a = {a} mm: {d} vs {printed}");
+    }
+}
+
+/// Exploration: ADR history of a crack-opening run. PRESET_VARIANT (default small) and SET
+/// (overrides separated by `;`).
+#[test]
+#[ignore]
+fn crack_opening_history() {
+    let variant = std::env::var("PRESET_VARIANT").unwrap_or_else(|_| "small".into());
+    let sets: Vec<String> = std::env::var("SET")
+        .map(|s| s.split(';').map(str::to_string).collect())
+        .unwrap_or_default();
+    let variant = (!variant.is_empty()).then_some(variant.as_str());
+    let scene = Scene::load_with("crack-opening", variant, &sets).unwrap();
+    let start = std::time::Instant::now();
+    let mut sim = DualHorizonSimulation::new(&scene).unwrap();
+    println!(
+        "setup {:.2} s, {} particles",
+        start.elapsed().as_secs_f64(),
+        sim.len()
+    );
+    let every: u64 = std::env::var("EVERY")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(500);
+    let total = sim.info().total_steps;
+    while sim.steps_done() < total && !sim.converged() {
+        sim.step().unwrap();
+        if sim.steps_done().is_multiple_of(every) {
+            let f = sim.frame();
+            println!(
+                "{:6} residual {:.3e} damping {:.3e} opening {:.5e} strain {:.4e}",
+                sim.steps_done(),
+                f.scalar("adr/residual").unwrap_or(f64::NAN),
+                f.scalar("adr/damping").unwrap_or(f64::NAN),
+                f.scalar("opening/mouth").unwrap_or(f64::NAN),
+                f.scalar("energy/strain").unwrap_or(f64::NAN),
+            );
+        }
+    }
+    let f = sim.frame();
+    println!(
+        "end {} iterations, {:.2} s, residual {:.3e}, opening {:.5e} m",
+        sim.steps_done(),
+        start.elapsed().as_secs_f64(),
+        f.scalar("adr/residual").unwrap_or(f64::NAN),
+        f.scalar("opening/mouth").unwrap_or(f64::NAN),
+    );
+}
+
+/// A free 30 × 30 mm steel plate expanding from a velocity ramp (±8 m/s across it, plus a
+/// uniform drift): its strains pass α s_c and particles split during the run.
+const EXPANDING_PLATE: &str = r#"
+name = "expanding-plate"
+dimension = 2
+[geometry]
+box = { min = ["0 mm", "0 mm"], max = ["30 mm", "30 mm"] }
+[discretization]
+spacing = "1 mm"
+horizon = "3.015 dx"
+origin = ["0.5 mm", "0.5 mm"]
+[material]
+model = "osb"
+density = "7850 kg/m^3"
+youngs_modulus = "200 GPa"
+poisson_ratio = 0.3333333333333333
+plane = "stress"
+thickness = "1 mm"
+fracture_energy = "1000 J/m^2"
+[refinement]
+[[initial.velocity]]
+ramp = { component = "x", axis = "x", from = "-8 m/s", to = "8 m/s" }
+[[initial.velocity]]
+ramp = { component = "y", axis = "y", from = "-8 m/s", to = "8 m/s" }
+[[initial.velocity]]
+uniform = { value = ["3 m/s", "-2 m/s"] }
+[time]
+dt = "0.5 stable"
+end = "400 steps"
+"#;
+
+/// Issue 17: on a free body whose initial velocity triggers splits, linear momentum and mass
+/// are conserved through every split to 1e-10 relative (children take a quarter of the
+/// parent's mass and its velocity; every directed bond acts on both ends); the total energy
+/// changes by the split's placement only, reported.
+#[test]
+fn splits_conserve_mass_and_momentum_on_a_free_body() {
+    let scene = Scene::from_text("expanding-plate.toml", EXPANDING_PLATE, None).unwrap();
+    let mut sim = DualHorizonSimulation::new(&scene).unwrap();
+    let mass = sim.mass();
+    let (_, _, p0) = sim.energies();
+    let expected = [3.0 * mass, -2.0 * mass];
+    for i in 0..2 {
+        assert!(
+            (p0[i] - expected[i]).abs() <= 1e-12 * mass * 3.0,
+            "initial momentum {p0:?}"
+        );
+    }
+    let scale = p0[0].hypot(p0[1]);
+    let mut split_steps = 0;
+    let mut last = sim.len();
+    let total = sim.info().total_steps;
+    while sim.steps_done() < total {
+        sim.step().unwrap();
+        if sim.len() != last {
+            split_steps += 1;
+            last = sim.len();
+        }
+        let (_, _, p) = sim.energies();
+        let (dm, dp) = (
+            (sim.mass() - mass).abs() / mass,
+            (p[0] - p0[0]).hypot(p[1] - p0[1]) / scale,
+        );
+        assert!(
+            dm <= 1e-10 && dp <= 1e-10,
+            "step {}: mass {dm:e}, momentum {dp:e}",
+            sim.steps_done()
+        );
+    }
+    println!(
+        "{} particles after {split_steps} splitting steps ({} parents), {} bonds broken",
+        sim.len(),
+        sim.split_parents,
+        sim.broken_bonds()
+    );
+    assert!(
+        split_steps >= 1 && sim.len() > 900,
+        "the expansion must trigger splits"
+    );
+    assert_eq!(sim.len(), 900 + 3 * sim.split_parents as usize);
+    let levels = sim.levels();
+    assert!(levels.iter().all(|&l| l <= 1), "one refinement level");
+    assert_eq!(
+        levels.iter().filter(|&&l| l == 1).count(),
+        4 * sim.split_parents as usize
+    );
+}
+
+/// zeng2024 Sect. 4.1 on the `small` plate (50 × 100 mm, a/L = 0.5, coarse): ADR converges to
+/// its stated residual and the mouth opening lies within the paper's coarse-grid error band
+/// (its Table 2: 1.55–4.21 %, here bounded by 5 %) of Tada's formula.
+#[test]
+fn crack_opening_relaxes_to_tadas_opening() {
+    let scene = Scene::load_with(
+        "crack-opening",
+        Some("small"),
+        &["refinement.enabled=false".into()],
+    )
+    .unwrap();
+    let mut sim = DualHorizonSimulation::new(&scene).unwrap();
+    let total = sim.info().total_steps;
+    while sim.steps_done() < total && !sim.converged() {
+        sim.step().unwrap();
+    }
+    let residual = sim.residual().unwrap();
+    assert!(
+        sim.converged() && residual < 1e-6,
+        "residual {residual:e} after {} iterations",
+        sim.steps_done()
+    );
+    let opening = sim.frame().scalar("opening/mouth").unwrap();
+    let exact = tada(10e6, 25e-3, 50e-3, 200e9);
+    let error = opening / exact - 1.0;
+    println!(
+        "{} iterations, opening {:.4} µm against {:.4} µm: {:+.2} %",
+        sim.steps_done(),
+        opening * 1e6,
+        exact * 1e6,
+        100.0 * error
+    );
+    assert!(error.abs() < 0.05, "opening error {error}");
+}
