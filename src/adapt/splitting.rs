@@ -21,26 +21,20 @@ use crate::discretization::family::crosses;
 use crate::discretization::{Field, Nodes};
 use crate::model::osb::{OsbHorizon, OsbMaterial};
 use crate::scene::CrackGeometry;
+pub use crate::scene::SplitRule;
 use crate::scheme::dual_horizon::{Body, DualBonds, NewRow, family_of};
 
-/// When a particle splits, and how deep.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SplitRule {
-    /// φ_c of (15).
-    pub damage: f64,
-    /// α of (16), in (0, 1).
-    pub strain_factor: f64,
-    /// Refinement levels (1: parents split once).
-    pub levels: u8,
-}
-
-impl SplitRule {
-    /// Whether particle k meets (15) or (16).
-    pub fn wants(&self, damage: f64, strains: [f64; 2], constants: &OsbHorizon, level: u8) -> bool {
-        level < self.levels
-            && (damage > self.damage
-                || strains[0].min(strains[1]) > self.strain_factor * constants.critical_stretch)
-    }
+/// Whether a particle meets (15) or (16) under `rule`.
+pub fn wants(
+    rule: &SplitRule,
+    damage: f64,
+    strains: [f64; 2],
+    constants: &OsbHorizon,
+    level: u8,
+) -> bool {
+    level < rule.levels
+        && (damage > rule.damage
+            || strains[0].min(strains[1]) > rule.strain_factor * constants.critical_stretch)
 }
 
 /// The per-particle columns a split writes.

@@ -2,7 +2,7 @@
 
 mod absorbing;
 mod state_based;
-pub use state_based::{OpeningSpec, StateBasedSpec};
+pub use state_based::{OpeningSpec, SplitRule, StateBasedSpec};
 pub mod builtin;
 pub mod error;
 pub mod geometry;
@@ -17,7 +17,7 @@ use std::path::Path;
 pub use error::SceneError;
 pub use geometry::Solid;
 pub use reference::Reference;
-pub use schema::{CheckSet, FamilyRadius, Physics, Preset, SchemeKind};
+pub use schema::{BondWeights, CheckSet, FamilyRadius, Physics, Preset, SchemeKind};
 
 use crate::model::pmb::{Influence, PmbConstants};
 

@@ -82,7 +82,7 @@ pub struct Discretization {
     /// see `scheme::dual_horizon`) or "volume" (plain V_j, the paper without its surface
     /// correction).
     #[serde(default)]
-    pub bond_weights: Option<crate::scheme::dual_horizon::BondWeights>,
+    pub bond_weights: Option<BondWeights>,
     /// WLS only: the auxiliary grid has spacing δ / collocation_factor (k_aux). Default: the
     /// papers' choice for the basis order and dimension (collocation sets of 5/11/13 in 1D,
     /// 29/49 in 2D, 123 in 3D).
@@ -662,4 +662,15 @@ pub struct CrackAngleSpec {
 
 fn default_threshold() -> f64 {
     0.35
+}
+
+/// How each OSB bond's share of the horizon integral is weighted (`scheme::dual_horizon`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BondWeights {
+    /// ω = V_j (zeng2024 (2) without a surface correction).
+    Volume,
+    /// Moment-matched V_j (see `scheme::dual_horizon`).
+    #[default]
+    Moments,
 }

@@ -3,14 +3,24 @@
 //! one refinement level).
 
 use super::error::{ErrorContext, SceneError};
+use super::schema::BondWeights;
 use super::schema::{IntegratorKind, ModelKind, Physics, Preset};
 use super::validate::{point, positive};
-use crate::adapt::splitting::SplitRule;
 use crate::model::osb::OsbMaterial;
-use crate::scheme::dual_horizon::BondWeights;
 
 /// ADR's residual tolerance where a preset gives none.
 pub const DEFAULT_TOLERANCE: f64 = 1e-6;
+
+/// When a particle splits, and how deep.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SplitRule {
+    /// φ_c of (15).
+    pub damage: f64,
+    /// α of (16), in (0, 1).
+    pub strain_factor: f64,
+    /// Refinement levels (1: parents split once).
+    pub levels: u8,
+}
 
 /// An OSB scene on a dual-horizon discretization.
 #[derive(Debug, Clone, PartialEq)]

@@ -20,17 +20,7 @@ use rayon::prelude::*;
 
 use crate::discretization::buckets::Buckets;
 use crate::model::osb::OsbHorizon;
-
-/// How each bond's share of the horizon integral is weighted.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum BondWeights {
-    /// ω = V_j (zeng2024 (2) without a surface correction).
-    Volume,
-    /// Moment-matched V_j (see the module notes).
-    #[default]
-    Moments,
-}
+pub use crate::scene::BondWeights;
 
 /// Smallest weight factor ω/V_j a moment fit may produce; below it the particle falls back
 /// to one scalar factor per term (Madenci's kind of correction), which keeps every bond's

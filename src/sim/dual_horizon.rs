@@ -696,7 +696,8 @@ fn candidates(
             } else {
                 bonds.normal_strains(k, &body, positions)
             };
-            rule.wants(
+            splitting::wants(
+                rule,
                 bonds.damage_of(k, body.volumes),
                 strains,
                 &body.constants[k],
