@@ -75,6 +75,23 @@ pub fn crack_angle<const D: usize>(
     Some(cos.acos().to_degrees())
 }
 
+/// `damage/count/<name>`: the nodes of each `[[metrics.damage_count]]` region whose damage
+/// reaches its threshold.
+pub fn damage_counts<const D: usize>(
+    scene: &crate::scene::Scene,
+    reference: &[[f64; D]],
+    damage: &[f64],
+    scalars: &mut Vec<(String, f64)>,
+) {
+    let eps = 1e-9 * scene.spacing;
+    for d in &scene.damage_counts {
+        let count = (0..reference.len())
+            .filter(|&i| damage[i] >= d.threshold && d.region.contains(&reference[i], eps))
+            .count();
+        scalars.push((format!("damage/count/{}", d.name), count as f64));
+    }
+}
+
 /// Unit principal axis (largest-variance direction) of a point set, by power iteration on the
 /// covariance matrix: the total-least-squares line direction.
 fn principal_axis<'a>(points: impl Iterator<Item = &'a [f64]> + Clone, dim: usize) -> Vec<f64> {

@@ -30,6 +30,10 @@ pub enum Command {
     Reset,
     /// Switching margin χ of the hybrid scheme, in (0, 1].
     SetChi(f64),
+    /// φ_c of particle splitting (zeng2024 (15)), in [0, 1).
+    SetSplitDamage(f64),
+    /// α of particle splitting (zeng2024 (16)), in (0, 1).
+    SetSplitStrain(f64),
     /// A new time step; above the stable bound only with `allow_unstable`.
     SetDt {
         value: DtValue,
@@ -63,7 +67,8 @@ pub enum Command {
 }
 
 /// The command forms, for error messages.
-pub const FORMS: &str = "play, pause, step [N], reset, set chi X, set dt VALUE [override] \
+pub const FORMS: &str = "play, pause, step [N], reset, set chi X, set phi_c X, set alpha X, \
+                         set dt VALUE [override] \
                          (VALUE: a time like `2 ns` or `0.5 stable`), set m X [restart], \
                          set dx LENGTH [restart], set scheme NAME [restart], set every K, \
                          set ratio N [restart], set region {SHAPE} [restart], \
@@ -130,6 +135,8 @@ impl Command {
                 Ok(Command::StartSaving(PathBuf::from(rest(2))))
             }
             ["set", "chi" | "χ", v] => Ok(Command::SetChi(number(v, "chi")?)),
+            ["set", "phi_c" | "φ_c", v] => Ok(Command::SetSplitDamage(number(v, "phi_c")?)),
+            ["set", "alpha" | "α", v] => Ok(Command::SetSplitStrain(number(v, "alpha")?)),
             ["set", "every", k] => k
                 .parse::<u64>()
                 .map(Command::SetEvery)
@@ -247,6 +254,8 @@ impl fmt::Display for Command {
             Command::Step(n) => write!(f, "step {n}"),
             Command::Reset => write!(f, "reset"),
             Command::SetChi(x) => write!(f, "set chi {x:?}"),
+            Command::SetSplitDamage(x) => write!(f, "set phi_c {x:?}"),
+            Command::SetSplitStrain(x) => write!(f, "set alpha {x:?}"),
             Command::SetDt {
                 value,
                 allow_unstable,
@@ -288,6 +297,13 @@ mod tests {
         assert_eq!(Command::parse(" step ").unwrap(), Command::Step(1));
         assert_eq!(Command::parse("step 5").unwrap(), Command::Step(5));
         assert_eq!(Command::parse("set chi 0.9").unwrap(), Command::SetChi(0.9));
+        for (text, command) in [
+            ("set phi_c 0.35", Command::SetSplitDamage(0.35)),
+            ("set α 0.25", Command::SetSplitStrain(0.25)),
+        ] {
+            assert_eq!(Command::parse(text).unwrap(), command);
+            assert_eq!(Command::parse(&command.to_string()).unwrap(), command);
+        }
         assert_eq!(
             Command::parse("set dt 2 ns").unwrap(),
             Command::SetDt {

@@ -266,6 +266,14 @@ impl ControlState {
                 crate::scene::check_chi(*chi)?;
                 Effect::Tune(Param::Chi(*chi))
             }
+            Command::SetSplitDamage(phi) => {
+                crate::scene::check_split_damage(*phi)?;
+                Effect::Tune(Param::SplitDamage(*phi))
+            }
+            Command::SetSplitStrain(alpha) => {
+                crate::scene::check_split_strain(*alpha)?;
+                Effect::Tune(Param::SplitStrain(*alpha))
+            }
             Command::SetDt {
                 value,
                 allow_unstable,
@@ -369,6 +377,7 @@ impl ControlState {
             Command::Play => self.running = true,
             Command::Pause | Command::Step(_) => self.running = false,
             Command::SetChi(chi) => self.chi = *chi,
+            Command::SetSplitDamage(_) | Command::SetSplitStrain(_) => {}
             Command::SetDt { .. } => {
                 if let Effect::SetDt(dt) = effect {
                     self.dt = *dt;

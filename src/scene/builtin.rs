@@ -21,6 +21,7 @@ const PRESETS: &[(&str, &str)] = &[
         "abc-wave-2d",
         include_str!("../../presets/abc-wave-2d.toml"),
     ),
+    ("branching", include_str!("../../presets/branching.toml")),
     (
         "corrosion-1d",
         include_str!("../../presets/corrosion-1d.toml"),
@@ -42,12 +43,20 @@ const PRESETS: &[(&str, &str)] = &[
         include_str!("../../presets/kalthoff-winkler.toml"),
     ),
     (
+        "kalthoff-winkler-dh",
+        include_str!("../../presets/kalthoff-winkler-dh.toml"),
+    ),
+    (
         "kalthoff-winkler-multigrid",
         include_str!("../../presets/kalthoff-winkler-multigrid.toml"),
     ),
     (
         "pmb-block-3d",
         include_str!("../../presets/pmb-block-3d.toml"),
+    ),
+    (
+        "plate-with-hole",
+        include_str!("../../presets/plate-with-hole.toml"),
     ),
     ("screw-3d", include_str!("../../presets/screw-3d.toml")),
     (

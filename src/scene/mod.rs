@@ -2,7 +2,9 @@
 
 mod absorbing;
 mod state_based;
-pub use state_based::{OpeningSpec, SplitRule, StateBasedSpec};
+pub use state_based::{
+    OpeningSpec, SplitRule, StateBasedSpec, check_split_damage, check_split_strain,
+};
 pub mod builtin;
 pub mod error;
 pub mod geometry;

@@ -41,6 +41,24 @@ pub struct OpeningSpec {
     pub axis: usize,
 }
 
+/// φ_c of (15), wherever it is set: it must lie in [0, 1).
+pub fn check_split_damage(phi: f64) -> Result<f64, String> {
+    if (0.0..1.0).contains(&phi) {
+        Ok(phi)
+    } else {
+        Err(format!("φ_c must lie in [0, 1), got {phi}"))
+    }
+}
+
+/// α of (16), wherever it is set: it must lie in (0, 1).
+pub fn check_split_strain(alpha: f64) -> Result<f64, String> {
+    if alpha > 0.0 && alpha < 1.0 {
+        Ok(alpha)
+    } else {
+        Err(format!("α must lie in (0, 1), got {alpha}"))
+    }
+}
+
 fn refuse(ctx: &ErrorContext, field: &str, what: &str) -> SceneError {
     ctx.error(field, format!("{what} needs material.model = \"osb\""))
 }
@@ -125,20 +143,10 @@ pub(super) fn state_based(
     };
     let refinement = match &p.refinement {
         Some(r) if r.enabled => {
-            let damage = r.damage.unwrap_or(0.4);
-            if !(0.0..1.0).contains(&damage) {
-                return Err(ctx.error(
-                    "refinement.damage",
-                    format!("φ_c must lie in [0, 1), got {damage}"),
-                ));
-            }
-            let strain_factor = r.strain_factor.unwrap_or(0.5);
-            if !(strain_factor > 0.0 && strain_factor < 1.0) {
-                return Err(ctx.error(
-                    "refinement.strain_factor",
-                    format!("α must lie in (0, 1), got {strain_factor}"),
-                ));
-            }
+            let damage = check_split_damage(r.damage.unwrap_or(0.4))
+                .map_err(|m| ctx.error("refinement.damage", m))?;
+            let strain_factor = check_split_strain(r.strain_factor.unwrap_or(0.5))
+                .map_err(|m| ctx.error("refinement.strain_factor", m))?;
             let levels = r.levels.unwrap_or(1);
             if !(1..=3).contains(&levels) {
                 return Err(ctx.error(

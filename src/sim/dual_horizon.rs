@@ -18,7 +18,7 @@ use crate::model::osb::{OsbHorizon, OsbMaterial};
 use crate::scene::{Condition, Scene, SceneError, StateBasedSpec};
 use crate::scheme::dual_horizon::{Body, DualBonds, ParticleTerms};
 use crate::solver::{
-    Clock, Integrator, Lap, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
+    Clock, Integrator, Lap, Param, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
 };
 
 const STAGES: &[&str] = &["kick_drift", "forces", "kick", "constraints", "refine"];
@@ -206,6 +206,16 @@ impl DualHorizonSimulation {
         if !scene.precracks.is_empty() {
             bonds.refit(&body(&nodes, &columns, &material));
         }
+        let density = m.density;
+        // A refined lattice's limit is 2⁻ˡ of the unsplit one's (the stiffness per mass scales
+        // with 1/Δ² at δ ∝ Δ): measured before any split, so that particles splitting later
+        // where the body is still intact cannot outrun the step (the power iteration on the
+        // split body alone misses a few children beside broken bonds).
+        let verlet = spec.relaxation.is_none();
+        let unsplit = match spec.refinement {
+            Some(_) if verlet => Some(stable_step(&spec, &nodes, &columns, &mut bonds, density)),
+            _ => None,
+        };
         // Pre-processing step 4 (zeng2024 Sect. 3.3): refine every particle past φ_c.
         let mut splits = (0, 0);
         if let Some(rule) = spec.refinement {
@@ -226,15 +236,20 @@ impl DualHorizonSimulation {
                 splits = (splits.0 + 1, splits.1 + parents.len() as u64);
             }
         }
-        let density = m.density;
-        let stable = stable_step(&spec, &nodes, &columns, &mut bonds, density);
-        let stable = match spec.relaxation {
-            Some(_) => StableStep {
+        // ADR iterates with a unit pseudo step: no limit to measure.
+        let stable = if verlet {
+            let mut stable = stable_step(&spec, &nodes, &columns, &mut bonds, density);
+            if let Some(u) = unsplit {
+                stable.sharp = stable.sharp.min(u.sharp);
+                stable.guaranteed = stable.guaranteed.min(u.guaranteed);
+            }
+            stable
+        } else {
+            StableStep {
                 sharp: 1.0,
                 guaranteed: 1.0,
                 integrator: Integrator::Verlet,
-            },
-            None => stable,
+            }
         };
         let run = RunState::new(scene, stable, STAGES)?;
         let motion = match spec.relaxation {
@@ -855,7 +870,7 @@ impl Stepper for DualHorizonSimulation {
             ("bonds/broken".to_string(), self.broken as f64),
             ("momentum/x".to_string(), momentum[0]),
             ("momentum/y".to_string(), momentum[1]),
-            ("metrics/refine/particles".to_string(), self.len() as f64),
+            ("refine/particles".to_string(), self.len() as f64),
             (
                 "metrics/refine/splits".to_string(),
                 self.split_parents as f64,
@@ -876,6 +891,7 @@ impl Stepper for DualHorizonSimulation {
                 scalars.push((format!("opening/{}", o.name), d));
             }
         }
+        metrics::damage_counts(&self.scene, self.reference(), &damage, &mut scalars);
         for (name, angle) in self.crack_angles_for(&damage) {
             if let Some(a) = angle {
                 scalars.push((format!("crack_angle_deg/{name}"), a));
@@ -976,5 +992,22 @@ impl Stepper for DualHorizonSimulation {
 
     fn broken_bonds(&self) -> u64 {
         self.broken
+    }
+
+    /// φ_c and α act in place from the next step's check on.
+    fn tune(&mut self, param: Param) -> Result<(), String> {
+        let Some(rule) = self.spec.refinement.as_mut() else {
+            return Err(param.unused_note().into());
+        };
+        match param {
+            Param::SplitDamage(phi) => rule.damage = crate::scene::check_split_damage(phi)?,
+            Param::SplitStrain(alpha) => {
+                rule.strain_factor = crate::scene::check_split_strain(alpha)?;
+            }
+            Param::Chi(_) => {
+                return Err("a dual-horizon scene has no hybrid scheme: χ is recorded only".into());
+            }
+        }
+        Ok(())
     }
 }

@@ -809,13 +809,7 @@ impl<const D: usize> DynamicSimulation<D> {
                 .sum();
             scalars.push((format!("energy/circle/{}", c.name), energy));
         }
-        let eps = 1e-9 * self.scene.spacing;
-        for d in &self.scene.damage_counts {
-            let count = (0..reference.len())
-                .filter(|&i| damage[i] >= d.threshold && d.region.contains(&reference[i], eps))
-                .count();
-            scalars.push((format!("damage/count/{}", d.name), count as f64));
-        }
+        metrics::damage_counts(&self.scene, reference, damage, scalars);
     }
 
     /// The grid classes, counts, switch events and invariant of a multi-adaptive frame.
@@ -1202,7 +1196,7 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         }
         match (param, self.hybrid.as_mut()) {
             (Param::Chi(chi), Some(h)) => h.set_chi(chi),
-            (param, None) => Err(param.unused_note().into()),
+            (param, _) => Err(param.unused_note().into()),
         }
     }
 

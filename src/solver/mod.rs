@@ -109,6 +109,10 @@ impl RunState {
 pub enum Param {
     /// The hybrid switching margin χ of (3.80), in (0, 1].
     Chi(f64),
+    /// φ_c of particle splitting, zeng2024 (15).
+    SplitDamage(f64),
+    /// α of particle splitting, zeng2024 (16).
+    SplitStrain(f64),
 }
 
 impl Param {
@@ -116,6 +120,9 @@ impl Param {
     pub fn unused_note(&self) -> &'static str {
         match self {
             Param::Chi(_) => "this scene has no hybrid scheme: χ is recorded only",
+            Param::SplitDamage(_) | Param::SplitStrain(_) => {
+                "this scene has no particle splitting ([refinement]): φ_c and α are recorded only"
+            }
         }
     }
 }
