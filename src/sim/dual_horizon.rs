@@ -929,13 +929,8 @@ impl Stepper for DualHorizonSimulation {
 
     fn info(&self) -> SimInfo {
         let (nodes, bonds) = (self.len(), self.bonds.bond_count());
-        self.run.info(Size {
-            dim: 2,
-            nodes,
-            bonds,
-            bytes_per_bond: self.bonds.bytes_per_bond(),
-            stencil: bonds as f64 / nodes.max(1) as f64 + 1.0,
-        })
+        self.run
+            .info(Size::of_bonds(2, nodes, bonds, self.bonds.bytes_per_bond()))
     }
 
     fn run(&self) -> &RunState {

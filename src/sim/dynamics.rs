@@ -1086,13 +1086,9 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
 
     fn info(&self) -> SimInfo {
         let (nodes, bonds) = (self.nodes().len(), self.families().bond_count());
-        self.run.info(Size {
-            dim: D,
-            nodes,
-            bonds,
-            bytes_per_bond: self.memory_bytes() as f64 / bonds.max(1) as f64,
-            stencil: bonds as f64 / nodes.max(1) as f64 + 1.0,
-        })
+        let bytes_per_bond = self.memory_bytes() as f64 / bonds.max(1) as f64;
+        self.run
+            .info(Size::of_bonds(D, nodes, bonds, bytes_per_bond))
     }
 
     fn run(&self) -> &RunState {

@@ -50,6 +50,19 @@ pub struct Size {
     pub stencil: f64,
 }
 
+impl Size {
+    /// The size of a bond-based discretization: each node's stencil is its family and itself.
+    pub fn of_bonds(dim: usize, nodes: usize, bonds: usize, bytes_per_bond: f64) -> Size {
+        Size {
+            dim,
+            nodes,
+            bonds,
+            bytes_per_bond,
+            stencil: bonds as f64 / nodes.max(1) as f64 + 1.0,
+        }
+    }
+}
+
 /// What every simulation's run holds besides its state: the clock, the stable step it was
 /// checked against, the frame cadence, the stage timers and the wall time per step.
 #[derive(Debug, Clone)]
