@@ -30,6 +30,8 @@ pub struct Relaxation {
     started: bool,
     /// The last damping c.
     pub damping: f64,
+    /// λ_max(D⁻¹K) the density was scaled by.
+    pub lambda: f64,
 }
 
 /// Λ = D λ_max(D⁻¹K) / 4 × margin, with Δt = 1.
@@ -41,13 +43,15 @@ pub fn scale_density(diagonal: &[f64], lambda_max: f64) -> Vec<f64> {
 }
 
 impl Relaxation {
-    pub fn new(density: Vec<f64>) -> Relaxation {
+    /// A relaxation from rest with density Λ, scaled by `lambda` (kept for rescaling).
+    pub fn new(density: Vec<f64>, lambda: f64) -> Relaxation {
         let n = density.len();
         Relaxation {
             density,
             previous_force: vec![[0.0; 2]; n],
             started: false,
             damping: 0.0,
+            lambda,
         }
     }
 
@@ -157,7 +161,7 @@ mod tests {
         let diagonal: Vec<f64> = (0..n)
             .map(|i| if i + 1 < n { 2.0 * k } else { k })
             .collect();
-        let mut relax = Relaxation::new(scale_density(&diagonal, 4.0 * 1.0));
+        let mut relax = Relaxation::new(scale_density(&diagonal, 4.0 * 1.0), 4.0);
         let forces = |y: &[[f64; 2]]| -> Vec<[f64; 2]> {
             (0..n)
                 .map(|i| {

@@ -47,6 +47,10 @@ pub struct ParticleTerms {
     pub dilatation: f64,
     /// W_k (4), J/m³.
     pub energy_density: f64,
+    /// φ_k (14) after the pass's breaks.
+    pub damage: f64,
+    /// ε_xx, ε_yy of (17).
+    pub strains: [f64; 2],
 }
 
 /// Directed bonds in CSR form with their dual lists.
@@ -67,6 +71,9 @@ pub struct DualBonds {
     dual: Vec<u32>,
     /// Particles whose moment fit fell back to scalar factors.
     pub fallbacks: usize,
+    /// Whether the force pass also gives each particle's damage and strains (the splitting
+    /// criteria; off where nothing splits).
+    pub criteria: bool,
     stretch: Vec<f64>,
     cosine: Vec<f64>,
     bond_force: Vec<[f64; 2]>,
@@ -446,6 +453,11 @@ impl DualBonds {
             }
             t.force = force;
             t.energy_density = c.a * t.dilatation * t.dilatation + distortion;
+            // The splitting criteria's inputs, while the particle's bonds are in cache.
+            if self.criteria {
+                t.damage = self.damage_of(k, body.volumes);
+                t.strains = self.normal_strains(k, body, positions);
+            }
         });
         broken
     }

@@ -86,6 +86,8 @@ impl NodeValue for ParticleTerms {
         force: [0.0; 2],
         dilatation: 0.0,
         energy_density: 0.0,
+        damage: 0.0,
+        strains: [0.0; 2],
     };
 }
 
@@ -202,6 +204,7 @@ impl DualHorizonSimulation {
         );
         let mut bonds =
             DualBonds::build(&body(&nodes, &columns, &material), &buckets, spec.weights);
+        bonds.criteria = spec.refinement.is_some();
         cut_precracks(scene, &nodes, &mut bonds)?;
         if !scene.precracks.is_empty() {
             bonds.refit(&body(&nodes, &columns, &material));
@@ -220,7 +223,7 @@ impl DualHorizonSimulation {
         let mut splits = (0, 0);
         if let Some(rule) = spec.refinement {
             for _ in 0..rule.levels {
-                let parents = candidates(&rule, &nodes, &columns, &bonds, &material, true);
+                let parents = candidates(&rule, &nodes, &columns, &bonds, true);
                 if parents.is_empty() {
                     break;
                 }
@@ -407,14 +410,7 @@ impl DualHorizonSimulation {
             return 0;
         };
         let material = self.spec.material;
-        let parents = candidates(
-            &rule,
-            &self.nodes,
-            &self.columns,
-            &self.bonds,
-            &material,
-            false,
-        );
+        let parents = candidates(&rule, &self.nodes, &self.columns, &self.bonds, false);
         if parents.is_empty() {
             return 0;
         }
@@ -542,8 +538,13 @@ impl DualHorizonSimulation {
         self.update_forces();
         lap.charge(&mut self.run.stages, FORCES);
         if self.refine() > 0 {
+            // The new rows' density from the measured scale (no new power iteration: the row
+            // sums keep the shape, so λ_max(D⁻¹K) stays; never below 1, the bound of exact
+            // absolute row sums).
             let material = self.spec.material;
-            let fresh = relaxation_of(&self.nodes, &self.columns, &mut self.bonds, &material);
+            let diagonal = self
+                .bonds
+                .stiffness_rows(&body(&self.nodes, &self.columns, &material));
             let n = self.nodes.len();
             if let Motion::Relaxation {
                 relaxation,
@@ -552,7 +553,10 @@ impl DualHorizonSimulation {
                 ..
             } = &mut self.motion
             {
-                *relaxation = fresh;
+                *relaxation = Relaxation::new(
+                    adr::scale_density(&diagonal, relaxation.lambda.max(1.0)),
+                    relaxation.lambda,
+                );
                 force.resize(n, [0.0; 2]);
                 external.resize(n, [0.0; 2]);
             }
@@ -688,36 +692,30 @@ fn cut_precracks(scene: &Scene, nodes: &Nodes<2>, bonds: &mut DualBonds) -> Resu
     Ok(())
 }
 
-/// The particles that meet (15) (and (16) unless `damage_only`: pre-processing).
+/// The particles that meet (15) (and (16) unless `damage_only`: pre-processing, before any
+/// force pass). During the run both come from the last force pass (`ParticleTerms`).
 fn candidates(
     rule: &SplitRule,
     nodes: &Nodes<2>,
     c: &Columns,
     bonds: &DualBonds,
-    material: &OsbMaterial,
     damage_only: bool,
 ) -> Vec<u32> {
-    let body = body(nodes, c, material);
-    let positions = nodes.fields.get(c.split.position);
     let levels = nodes.fields.get(c.split.level);
+    let constants = nodes.fields.get(c.split.constants);
+    let terms = nodes.fields.get(c.terms);
     (0..nodes.len())
         .into_par_iter()
         .filter(|&k| {
             if levels[k] >= rule.levels {
                 return false;
             }
-            let strains = if damage_only {
-                [0.0; 2]
+            let (damage, strains) = if damage_only {
+                (bonds.damage_of(k, nodes.volumes()), [0.0; 2])
             } else {
-                bonds.normal_strains(k, &body, positions)
+                (terms[k].damage, terms[k].strains)
             };
-            splitting::wants(
-                rule,
-                bonds.damage_of(k, body.volumes),
-                strains,
-                &body.constants[k],
-                levels[k],
-            )
+            splitting::wants(rule, damage, strains, &constants[k], levels[k])
         })
         .map(|k| k as u32)
         .collect()
@@ -814,7 +812,7 @@ fn relaxation_of(
 ) -> Relaxation {
     let diagonal = bonds.stiffness_rows(&body(nodes, c, material));
     let lambda = stiffness_eigenvalue(nodes, c, bonds, material, &diagonal);
-    Relaxation::new(adr::scale_density(&diagonal, lambda))
+    Relaxation::new(adr::scale_density(&diagonal, lambda), lambda)
 }
 
 fn initial_scale(velocities: &[[f64; 2]]) -> f64 {
