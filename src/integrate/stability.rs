@@ -9,6 +9,10 @@
 
 use crate::discretization::grid::SplitMix64;
 
+/// Power iterations for a stable-step estimate (the Rayleigh quotient settles well within them
+/// on the presets' operators).
+pub const POWER_ITERATIONS: usize = 60;
+
 /// Largest eigenvalue of a linear operator on `n` vectors of `D` components that is
 /// self-adjoint and positive semi-definite in the inner product weighted by `weights`
 /// (node masses). Power iteration from a deterministic random start; returns the Rayleigh

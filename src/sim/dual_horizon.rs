@@ -12,6 +12,7 @@ use crate::discretization::family::crosses;
 use crate::discretization::{Families, Field, Lattice, NodeValue, Nodes, layers};
 use crate::frame::{ClassField, Frame, NodeField};
 use crate::integrate::adr::{self, Relaxation};
+use crate::integrate::stability::POWER_ITERATIONS;
 use crate::integrate::{stability, verlet};
 use crate::metrics;
 use crate::model::osb::{OsbHorizon, OsbMaterial};
@@ -27,9 +28,6 @@ const FORCES: usize = 1;
 const KICK: usize = 2;
 const CONSTRAINTS: usize = 3;
 const REFINE: usize = 4;
-
-/// Power iterations for the stable step and for ADR's density scale.
-const POWER_ITERATIONS: usize = 60;
 
 /// Held-component flags: bit i holds the velocity along axis i, bit 2 + i the displacement.
 const HOLD_DISPLACEMENT_SHIFT: u8 = 2;

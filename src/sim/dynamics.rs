@@ -12,6 +12,7 @@ use crate::adapt::masks::{GridClass, SchemeClass};
 use crate::adapt::multiadaptive::MultiAdaptive;
 use crate::discretization::{Discretization, Families, Field, Nodes, Quadrature};
 use crate::frame::{ClassField, Frame, NodeField};
+use crate::integrate::stability::POWER_ITERATIONS;
 use crate::integrate::{self, stability, verlet};
 use crate::metrics;
 use crate::model::pmb::PmbLaw;
@@ -38,8 +39,6 @@ const KICK: usize = 3;
 const CONSTRAINTS: usize = 4;
 const ABSORBING: usize = 5;
 
-/// Power iterations for the stable-step estimate.
-const POWER_ITERATIONS: usize = 60;
 /// Power iterations for the (non-symmetric) hybrid operator's spectral radius.
 const HYBRID_ITERATIONS: usize = 200;
 
