@@ -66,6 +66,8 @@ pub struct DualBonds {
     weights: BondWeights,
     /// Owner k of each bond (the bond-parallel passes read it).
     owner: Vec<u32>,
+    /// |ξ| of each bond (the reference never changes under a bond).
+    lengths: Vec<f64>,
     /// Bonds j → k of each particle k: `dual[dual_offsets[k]..dual_offsets[k + 1]]`.
     dual_offsets: Vec<usize>,
     dual: Vec<u32>,
@@ -240,6 +242,14 @@ impl DualBonds {
         self.owner = (0..n)
             .flat_map(|k| std::iter::repeat_n(k as u32, lists[k].len()))
             .collect();
+        let x = body.reference;
+        self.lengths = (0..total)
+            .map(|b| {
+                let (k, j) = (self.owner[b] as usize, self.neighbors[b] as usize);
+                let xi = [x[j][0] - x[k][0], x[j][1] - x[k][1]];
+                (xi[0] * xi[0] + xi[1] * xi[1]).sqrt()
+            })
+            .collect();
         self.rebuild_dual(n);
         self.stretch = vec![0.0; total];
         self.cosine = vec![0.0; total];
@@ -366,8 +376,7 @@ impl DualBonds {
         positions: &[[f64; 2]],
         out: &mut [ParticleTerms],
     ) -> u64 {
-        let owner = &self.owner;
-        let neighbors = &self.neighbors;
+        let (owner, neighbors, lengths) = (&self.owner, &self.neighbors, &self.lengths);
         let broken: u64 = self
             .stretch
             .par_iter_mut()
@@ -379,7 +388,7 @@ impl DualBonds {
                 let (x, y) = (body.reference, positions);
                 let xi = [x[j][0] - x[k][0], x[j][1] - x[k][1]];
                 let eta = [y[j][0] - y[k][0], y[j][1] - y[k][1]];
-                let l0 = (xi[0] * xi[0] + xi[1] * xi[1]).sqrt();
+                let l0 = lengths[b];
                 let l = (eta[0] * eta[0] + eta[1] * eta[1]).sqrt();
                 *s = (l - l0) / l0;
                 *c = (xi[0] * eta[0] + xi[1] * eta[1]) / (l0 * l);
@@ -418,8 +427,7 @@ impl DualBonds {
                 let y = positions;
                 let eta = [y[j][0] - y[k][0], y[j][1] - y[k][1]];
                 let l = (eta[0] * eta[0] + eta[1] * eta[1]).sqrt();
-                let x = body.reference;
-                let l0 = ((x[j][0] - x[k][0]).powi(2) + (x[j][1] - x[k][1]).powi(2)).sqrt();
+                let l0 = lengths[b];
                 let scalar = body.constants[k].bond_scalar(
                     terms[k].dilatation,
                     cosine[b],
@@ -437,14 +445,11 @@ impl DualBonds {
             let c = &body.constants[k];
             let mut force = [0.0; 2];
             let mut distortion = 0.0;
-            let x = body.reference;
             for b in offsets[k]..offsets[k + 1] {
                 force[0] += bond_force[b][0];
                 force[1] += bond_force[b][1];
                 if intact[b] != 0 {
-                    let j = neighbors[b] as usize;
-                    let l0 = ((x[j][0] - x[k][0]).powi(2) + (x[j][1] - x[k][1]).powi(2)).sqrt();
-                    distortion += c.distortion_energy(stretch[b], l0, weight_distortion[b]);
+                    distortion += c.distortion_energy(stretch[b], lengths[b], weight_distortion[b]);
                 }
             }
             for &b in &dual[dual_offsets[k]..dual_offsets[k + 1]] {
@@ -511,11 +516,8 @@ impl DualBonds {
     /// and of the stable-step estimate.
     pub fn stiffness_rows(&self, body: &Body) -> Vec<f64> {
         let n = self.particle_count();
-        let x = body.reference;
-        let length =
-            |k: usize, j: usize| ((x[j][0] - x[k][0]).powi(2) + (x[j][1] - x[k][1]).powi(2)).sqrt();
         let bond_stiffness = |b: usize| -> f64 {
-            let (k, j) = (self.owner[b] as usize, self.neighbors[b] as usize);
+            let k = self.owner[b] as usize;
             let c = &body.constants[k];
             f64::from(self.intact[b])
                 * 2.0
@@ -523,7 +525,7 @@ impl DualBonds {
                 * c.b
                 * self.weight_distortion[b]
                 * body.volumes[k]
-                / length(k, j)
+                / self.lengths[b]
         };
         (0..n)
             .into_par_iter()
@@ -533,8 +535,7 @@ impl DualBonds {
                 let mut theta = 0.0;
                 for b in self.range(k) {
                     row += 2.0 * bond_stiffness(b);
-                    theta += f64::from(self.intact[b]) * self.weight_theta[b]
-                        / length(k, self.neighbors[b] as usize);
+                    theta += f64::from(self.intact[b]) * self.weight_theta[b] / self.lengths[b];
                 }
                 for &b in self.dual_bonds(k) {
                     row += 2.0 * bond_stiffness(b as usize);
@@ -580,8 +581,9 @@ impl DualBonds {
 
     /// Bytes held per directed bond (bond arrays, dual lists and scratch).
     pub fn bytes_per_bond(&self) -> f64 {
-        // neighbor, owner, dual: u32; μ: u8; two weights, stretch, cosine: f64; force: 2 f64.
-        (3 * 4 + 1 + 4 * 8 + 16) as f64
+        // neighbor, owner, dual: u32; μ: u8; length, two weights, stretch, cosine: f64; force:
+        // 2 f64.
+        (3 * 4 + 1 + 5 * 8 + 16) as f64
     }
 }
 

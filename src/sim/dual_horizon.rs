@@ -138,6 +138,8 @@ pub struct DualHorizonSimulation {
     run: RunState,
     motion: Motion,
     held: Vec<Held>,
+    /// The smallest particle's Δ (the blow-up check's length; it shrinks only by a split).
+    smallest_spacing: f64,
     broken: u64,
     /// Splitting passes and particles split so far; events since the last frame.
     pub splits: u64,
@@ -274,6 +276,7 @@ impl DualHorizonSimulation {
             run,
             motion,
             held: Vec::new(),
+            smallest_spacing: scene.spacing,
             broken: 0,
             splits: splits.0,
             split_parents: splits.1,
@@ -287,6 +290,7 @@ impl DualHorizonSimulation {
             ));
         }
         sim.held = held_list(&sim.nodes, &sim.columns);
+        sim.smallest_spacing = sim.smallest();
         sim.hold();
         sim.velocity_scale = initial_scale(sim.nodes.fields.get(sim.columns.velocity));
         sim.update_forces();
@@ -397,6 +401,11 @@ impl DualHorizonSimulation {
         }
     }
 
+    fn smallest(&self) -> f64 {
+        let spacing = self.nodes.fields.get(self.columns.split.spacing);
+        spacing.iter().copied().fold(f64::INFINITY, f64::min)
+    }
+
     /// Damage (14) of every particle.
     pub fn damage(&self) -> Vec<f64> {
         self.bonds.damage(self.nodes.volumes())
@@ -422,6 +431,7 @@ impl DualHorizonSimulation {
             &self.scene.precracks,
         );
         self.held = held_list(&self.nodes, &self.columns);
+        self.smallest_spacing = self.smallest();
         self.splits += 1;
         self.split_parents += parents.len() as u64;
         self.events.push(format!(
@@ -469,8 +479,7 @@ impl DualHorizonSimulation {
         lap.charge(&mut self.run.stages, REFINE);
         self.run.clock.advance();
         let max_speed = max_speed2.sqrt();
-        let smallest = self.scene.spacing * 0.5f64.powi(i32::from(self.max_level()));
-        if max_speed.is_nan() || max_speed * dt > 0.5 * smallest {
+        if max_speed.is_nan() || max_speed * dt > 0.5 * self.smallest_spacing {
             return Err(SimError::Unstable {
                 step: self.run.clock.step(),
                 time: self.run.clock.time(),
@@ -480,10 +489,6 @@ impl DualHorizonSimulation {
             });
         }
         Ok(())
-    }
-
-    fn max_level(&self) -> u8 {
-        self.levels().iter().copied().max().unwrap_or(0)
     }
 
     /// One ADR iteration (zeng2024 Sect. 4.1; `integrate::adr`).
