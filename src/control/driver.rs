@@ -18,7 +18,7 @@ use crate::record::{Outlet, RerunSink};
 use crate::runner::{FrameSink, RunSummary};
 use crate::scene::Scene;
 use crate::sim;
-use crate::solver::{SimError, Stepper};
+use crate::solver::{Param, SimError, Stepper};
 
 /// Where a session writes besides its recording.
 #[derive(Debug, Clone, Default)]
@@ -380,8 +380,23 @@ impl Driver {
         }
         self.close_run()?;
         self.sim = sim;
+        self.carry_live_parameters();
         self.pending = 0;
         self.open_run(&scene)
+    }
+
+    /// The live parameters the state holds (χ, φ_c, α) set on a rebuilt simulation, so a
+    /// rebuild keeps what the user tuned; a scene without a use for one ignores it.
+    fn carry_live_parameters(&mut self) {
+        let mut params = vec![Param::Chi(self.state.chi)];
+        if let Some(rule) = self.state.split {
+            params.push(Param::SplitDamage(rule.damage));
+            params.push(Param::SplitStrain(rule.strain_factor));
+        }
+        for param in params {
+            // Err is the note that the scene has no use for the parameter.
+            let _ = self.sim.tune(param);
+        }
     }
 
     /// Ends the session: closes the recording and reports the last run.

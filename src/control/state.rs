@@ -91,6 +91,8 @@ pub struct ControlState {
     pub run: u32,
     pub running: bool,
     pub chi: f64,
+    /// φ_c and α of a scene that splits particles (`None` elsewhere).
+    pub split: Option<crate::scene::SplitRule>,
     pub dt: f64,
     pub stable_dt: f64,
     pub discretization: Discretization,
@@ -129,6 +131,7 @@ impl ControlState {
                 .unwrap_or(&scene.source)
                 .to_string(),
             variant: scene.variant.clone(),
+            split: scene.state_based.as_ref().and_then(|s| s.refinement),
             ..ControlState::new(session, info, discretization, chi)
         }
     }
@@ -147,6 +150,7 @@ impl ControlState {
             run: 1,
             running: true,
             chi,
+            split: None,
             dt: info.dt,
             stable_dt: info.stable_dt,
             discretization,
@@ -377,7 +381,16 @@ impl ControlState {
             Command::Play => self.running = true,
             Command::Pause | Command::Step(_) => self.running = false,
             Command::SetChi(chi) => self.chi = *chi,
-            Command::SetSplitDamage(_) | Command::SetSplitStrain(_) => {}
+            Command::SetSplitDamage(phi) => {
+                if let Some(rule) = &mut self.split {
+                    rule.damage = *phi;
+                }
+            }
+            Command::SetSplitStrain(alpha) => {
+                if let Some(rule) = &mut self.split {
+                    rule.strain_factor = *alpha;
+                }
+            }
             Command::SetDt { .. } => {
                 if let Effect::SetDt(dt) = effect {
                     self.dt = *dt;

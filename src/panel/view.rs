@@ -11,6 +11,9 @@ use crate::scene::builtin;
 #[derive(Debug, Clone, Default)]
 pub struct PanelInputs {
     pub chi: f64,
+    /// φ_c and α of a scene that splits particles.
+    pub split_damage: f64,
+    pub split_strain: f64,
     pub dt_text: String,
     pub dt_override: bool,
     pub m: f64,
@@ -42,6 +45,7 @@ pub struct PanelInputs {
 struct SeenState {
     run: u32,
     chi: u64,
+    split: Option<(u64, u64)>,
     dt: u64,
     m: u64,
     dx: u64,
@@ -73,6 +77,9 @@ impl PanelInputs {
         let now = SeenState {
             run: state.run,
             chi: state.chi.to_bits(),
+            split: state
+                .split
+                .map(|r| (r.damage.to_bits(), r.strain_factor.to_bits())),
             dt: state.dt.to_bits(),
             m: d.m.to_bits(),
             dx: d.dx.to_bits(),
@@ -84,6 +91,10 @@ impl PanelInputs {
             return;
         }
         self.chi = state.chi;
+        if let Some(rule) = state.split {
+            self.split_damage = rule.damage;
+            self.split_strain = rule.strain_factor;
+        }
         self.dt_text = format!("{:.4} ns", state.dt * 1e9);
         self.m = d.m;
         self.dx_mm_text = format!("{}", d.dx * 1e3);
@@ -206,6 +217,11 @@ fn run_controls(ui: &mut egui::Ui, state: &ControlState, out: &mut Vec<Command>)
     )));
 }
 
+/// A slider's value is final: released after a drag, or changed by keyboard or click.
+fn settled(slider: &egui::Response) -> bool {
+    slider.drag_stopped() || (slider.changed() && !slider.dragged())
+}
+
 fn live_parameters(
     ui: &mut egui::Ui,
     state: &ControlState,
@@ -217,12 +233,30 @@ fn live_parameters(
         let slider = ui
             .add(egui::Slider::new(&mut inputs.chi, 0.01..=1.0).fixed_decimals(2))
             .labelled_by(label.id);
-        if (slider.drag_stopped() || (slider.changed() && !slider.dragged()))
-            && inputs.chi != state.chi
-        {
+        if settled(&slider) && inputs.chi != state.chi {
             out.push(Command::SetChi(inputs.chi));
         }
         ui.end_row();
+
+        if let Some(rule) = state.split {
+            // zeng2024 (15) and (16): the ranges the scene loader accepts.
+            let label = ui.label("φ_c (split damage)");
+            let slider = ui
+                .add(egui::Slider::new(&mut inputs.split_damage, 0.0..=0.99).fixed_decimals(2))
+                .labelled_by(label.id);
+            if settled(&slider) && inputs.split_damage != rule.damage {
+                out.push(Command::SetSplitDamage(inputs.split_damage));
+            }
+            ui.end_row();
+            let label = ui.label("α (split strain / s_c)");
+            let slider = ui
+                .add(egui::Slider::new(&mut inputs.split_strain, 0.01..=0.99).fixed_decimals(2))
+                .labelled_by(label.id);
+            if settled(&slider) && inputs.split_strain != rule.strain_factor {
+                out.push(Command::SetSplitStrain(inputs.split_strain));
+            }
+            ui.end_row();
+        }
 
         let label = ui.label("Δt");
         ui.horizontal(|ui| {

@@ -302,3 +302,54 @@ fn the_panel_starts_at_the_presets_chi() {
     driver.finish(false, None).unwrap();
     let _ = std::fs::remove_file(file);
 }
+
+/// A scene that splits particles shows φ_c and α (zeng2024 (15), (16)) at the preset's values;
+/// dragging φ_c emits one `set phi_c` that the state then shows. Scenes without splitting show
+/// neither slider.
+#[test]
+fn the_split_sliders_show_the_presets_rule_and_emit_set_phi_c() {
+    use egui_kittest::kittest::NodeT;
+    let scene = peridyn::scene::Scene::load("branching", Some("small")).unwrap();
+    let file = std::env::temp_dir().join(format!("peridyn-panel-split-{}.rrd", std::process::id()));
+    let outlet =
+        peridyn::record::Outlet::open(&peridyn::record::RecordTarget::File(file.clone())).unwrap();
+    let spec = peridyn::control::runspec::RunSpec::new(&scene, None, Some(1));
+    let driver = peridyn::control::Driver::start(spec, outlet, "split").unwrap();
+    let rule = driver.state.split.expect("branching splits particles");
+    assert_eq!((rule.damage, rule.strain_factor), (0.4, 0.5));
+    let mut h = harness_of(Model {
+        state: driver.state.clone(),
+        inputs: PanelInputs::default(),
+        emitted: Vec::new(),
+    });
+    h.run();
+    let shown = |h: &Harness<'static, Model>, label: &str| {
+        h.get_by_label(label).accesskit_node().numeric_value()
+    };
+    assert_eq!(shown(&h, "φ_c (split damage)"), Some(0.4));
+    assert_eq!(shown(&h, "α (split strain / s_c)"), Some(0.5));
+    assert!(
+        h.state().emitted.is_empty(),
+        "showing them gives no command"
+    );
+    let rect = h.get_by_label("φ_c (split damage)").rect();
+    h.drag_at(rect.left_center() + egui::vec2(2.0, 0.0));
+    h.run();
+    h.hover_at(rect.center());
+    h.run();
+    h.drop_at(rect.center());
+    h.run();
+    let emitted = h.state().emitted.clone();
+    assert_eq!(emitted.len(), 1, "{emitted:?}");
+    let Command::SetSplitDamage(phi) = emitted[0] else {
+        panic!("{emitted:?}")
+    };
+    assert!((0.35..0.65).contains(&phi), "dragged to the middle: {phi}");
+    assert_eq!(h.state().state.split.map(|r| r.damage), Some(phi));
+    drop(driver);
+    let _ = std::fs::remove_file(&file);
+    // The vibrating plate does not split: no slider.
+    let mut h = harness();
+    h.run();
+    assert!(h.query_by_label("φ_c (split damage)").is_none());
+}
