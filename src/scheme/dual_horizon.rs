@@ -73,9 +73,10 @@ pub struct DualBonds {
     dual: Vec<u32>,
     /// Particles whose moment fit fell back to scalar factors.
     pub fallbacks: usize,
-    /// Whether the force pass also gives each particle's damage and strains (the splitting
-    /// criteria; off where nothing splits).
-    pub criteria: bool,
+    /// Per particle, whether the force pass also gives its damage and strains (the splitting
+    /// criteria's inputs): set for the particles that may still split; empty where nothing
+    /// splits.
+    pub criteria: Vec<bool>,
     stretch: Vec<f64>,
     cosine: Vec<f64>,
     bond_force: Vec<[f64; 2]>,
@@ -459,7 +460,7 @@ impl DualBonds {
             t.force = force;
             t.energy_density = c.a * t.dilatation * t.dilatation + distortion;
             // The splitting criteria's inputs, while the particle's bonds are in cache.
-            if self.criteria {
+            if self.criteria.get(k).copied().unwrap_or(false) {
                 t.damage = self.damage_of(k, body.volumes);
                 t.strains = self.normal_strains(k, body, positions);
             }

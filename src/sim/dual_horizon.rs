@@ -204,7 +204,6 @@ impl DualHorizonSimulation {
         );
         let mut bonds =
             DualBonds::build(&body(&nodes, &columns, &material), &buckets, spec.weights);
-        bonds.criteria = spec.refinement.is_some();
         cut_precracks(scene, &nodes, &mut bonds)?;
         if !scene.precracks.is_empty() {
             bonds.refit(&body(&nodes, &columns, &material));
@@ -291,6 +290,7 @@ impl DualHorizonSimulation {
         }
         sim.held = held_list(&sim.nodes, &sim.columns);
         sim.smallest_spacing = sim.smallest();
+        sim.mark_splittable();
         sim.hold();
         sim.velocity_scale = initial_scale(sim.nodes.fields.get(sim.columns.velocity));
         sim.update_forces();
@@ -411,6 +411,19 @@ impl DualHorizonSimulation {
         self.bonds.damage(self.nodes.volumes())
     }
 
+    /// The particles below the level cap get their split criteria from the force pass; those
+    /// at the cap (children of the last level) skip them.
+    fn mark_splittable(&mut self) {
+        let Some(rule) = self.spec.refinement else {
+            return;
+        };
+        let levels = self.nodes.fields.get(self.columns.split.level);
+        self.bonds.criteria.clear();
+        self.bonds
+            .criteria
+            .extend(levels.iter().map(|&l| l < rule.levels));
+    }
+
     /// Splits every particle that meets (15) or (16); returns the number split.
     fn refine(&mut self) -> usize {
         let Some(rule) = self.spec.refinement else {
@@ -432,6 +445,7 @@ impl DualHorizonSimulation {
         );
         self.held = held_list(&self.nodes, &self.columns);
         self.smallest_spacing = self.smallest();
+        self.mark_splittable();
         self.splits += 1;
         self.split_parents += parents.len() as u64;
         self.events.push(format!(

@@ -5,6 +5,7 @@
 use peridyn::adapt::splitting::{self, SplitColumns};
 use peridyn::discretization::Nodes;
 use peridyn::discretization::buckets::Buckets;
+use peridyn::metrics::branching::{BranchProbe, Branches};
 use peridyn::model::osb::{OsbHorizon, OsbMaterial};
 use peridyn::model::pmb::Plane;
 use peridyn::scene::Scene;
@@ -278,6 +279,76 @@ fn tada_formula_reproduces_the_printed_values() {
     }
 }
 
+/// The branching plate's probe (`metrics::branching`): the pre-crack on y = 20 mm ends at
+/// x = 50 mm; cracked means φ > 0.45 (a pre-crack face keeps φ = 0.393); columns of one
+/// coarse cell; two bands more than one coarse horizon apart are two cracks.
+const BRANCH_PROBE: BranchProbe = BranchProbe {
+    line_y: 20e-3,
+    from_x: 50e-3,
+    threshold: 0.45,
+    column: 1e-3,
+    gap: 3.015e-3,
+};
+
+/// Runs `sim` for `steps`, sampling the crack front every `sample` steps; returns the
+/// branches of the last damage field and the time the front first reached the branch point
+/// (linear between samples).
+fn branching_run(
+    sim: &mut DualHorizonSimulation,
+    steps: u64,
+    sample: u64,
+) -> (Option<Branches>, Option<f64>) {
+    let mut fronts = vec![(0.0, f64::NEG_INFINITY)];
+    while sim.steps_done() < steps {
+        sim.step().unwrap();
+        if sim.steps_done().is_multiple_of(sample) {
+            let front = BRANCH_PROBE.front(sim.reference(), &sim.damage());
+            fronts.push((sim.time(), front.unwrap_or(f64::NEG_INFINITY)));
+        }
+    }
+    let branches = BRANCH_PROBE.branches(sim.reference(), &sim.damage());
+    let onset = branches.and_then(|b| {
+        fronts.windows(2).find_map(|w| {
+            let ((t0, f0), (t1, f1)) = (w[0], w[1]);
+            let xb = b.point[0];
+            (f1 >= xb).then(|| {
+                if f0.is_finite() && f0 < xb {
+                    t0 + (xb - f0) / (f1 - f0) * (t1 - t0)
+                } else {
+                    t1
+                }
+            })
+        })
+    });
+    (branches, onset)
+}
+
+/// zeng2024 Sect. 4.2, Case 1 (σ = 1 MPa), adaptive: the crack branches at ≈ 35 µs. The
+/// branch point is where the lines through the two branches meet; the onset is when the
+/// crack front (sampled every 0.5 µs) reached it. Acceptance: 35 ± 5 µs, the branches
+/// diverging (upper above, lower below the original line).
+#[test]
+fn branching_case_1_branches_at_35_microseconds() {
+    let scene = Scene::load_with("branching", None, &["time.end=\"60 us\"".into()]).unwrap();
+    let mut sim = DualHorizonSimulation::new(&scene).unwrap();
+    let steps = sim.info().total_steps;
+    let (branches, onset) = branching_run(&mut sim, steps, 50);
+    let b = branches.expect("two branches by 60 µs");
+    let onset = onset.expect("the front passed the branch point");
+    println!(
+        "branch point ({:.2}, {:.2}) mm, first two-band column {:.1} mm, angles {:.1}° / {:.1}°, onset {:.2} µs, {} particles",
+        b.point[0] * 1e3,
+        b.point[1] * 1e3,
+        b.first_split_column * 1e3,
+        b.angles[0],
+        b.angles[1],
+        onset * 1e6,
+        sim.len()
+    );
+    assert!(b.angles[0] > 5.0 && b.angles[1] < -5.0, "{b:?}");
+    assert!((30e-6..=40e-6).contains(&onset), "onset {onset:e} s");
+}
+
 /// Exploration and the measurements of docs/results.md: runs PRESET (default crack-opening),
 /// variant PRESET_VARIANT (default small; empty: the base), overrides SET (separated by `;`),
 /// printing the ADR history every EVERY steps and the final frame's figures.
@@ -302,6 +373,10 @@ fn dual_horizon_measurement() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(u64::MAX);
     let total = sim.info().total_steps;
+    if preset == "branching" {
+        let (_, onset) = branching_run(&mut sim, total, 50);
+        println!("branching onset {:?} µs", onset.map(|t| t * 1e6));
+    }
     while sim.steps_done() < total && !sim.converged() {
         sim.step().unwrap();
         if sim.steps_done().is_multiple_of(every) {
@@ -319,6 +394,16 @@ fn dual_horizon_measurement() {
         }
     }
     let wall = start.elapsed().as_secs_f64();
+    if preset == "branching" {
+        let (x, damage) = (sim.reference(), sim.damage());
+        let b = BRANCH_PROBE.branches(x, &damage);
+        println!(
+            "branches {b:?}; damaged (φ ≥ 0.2 / 0.3 / 0.45) between them: {} / {} / {}",
+            BRANCH_PROBE.between(x, &damage, 0.2),
+            BRANCH_PROBE.between(x, &damage, 0.3),
+            BRANCH_PROBE.between(x, &damage, 0.45)
+        );
+    }
     let f = sim.frame();
     let stages: Vec<String> = sim
         .stages()

@@ -1,4 +1,6 @@
-//! Measurements on the node state: energies, momentum, crack-path angle.
+//! Measurements on the node state: energies, momentum, crack-path angle, crack branching.
+
+pub mod branching;
 
 use std::collections::VecDeque;
 
