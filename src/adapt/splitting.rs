@@ -4,8 +4,8 @@
 //!   (ambiguity 2), ε_ii in the regression form of (17) (ambiguity 1);
 //! - a parent becomes 2ᵈ children at the sub-cell centres x_k ± Δ_k/4 (ambiguity 3), placed in
 //!   the current configuration with the parent's normal stretches (18), each with a quarter of
-//!   its volume and mass, its velocity and half its horizon (30); one level by default (the
-//!   paper's examples);
+//!   its volume and mass, its velocity and half its horizon (30; `SplitRule::horizon_ratio`:
+//!   Table 3's other choice keeps the parent's); one level by default (the paper's examples);
 //! - families: the children's from the parent's neighbourhood (22) and, for every particle
 //!   whose horizon can reach a child, its own row again (ambiguity 4); only those rows are
 //!   searched and refitted;
@@ -71,6 +71,7 @@ pub fn split(
     bonds: &mut DualBonds,
     buckets: &mut Buckets,
     material: &OsbMaterial,
+    horizon_ratio: f64,
     precracks: &[CrackGeometry],
 ) -> SplitReport {
     if parents.is_empty() {
@@ -91,10 +92,10 @@ pub fn split(
             .iter()
             .map(|&p| {
                 let p = p as usize;
-                let strain = bonds.normal_strains(p, &body, positions);
                 let quarter = 0.25 * spacing[p];
                 let (x, y) = (body.reference[p], positions[p]);
                 let reference = SIGNS.map(|s| [x[0] + quarter * s[0], x[1] + quarter * s[1]]);
+                let strain = bonds.normal_strains(p, &body, positions);
                 let current = SIGNS.map(|s| {
                     [
                         y[0] + quarter * (1.0 + strain[0]) * s[0],
@@ -125,7 +126,7 @@ pub fn split(
         buckets.relocate(p as u32, &old_x, &reference[0]);
         let children: Vec<usize> = std::iter::once(p).chain(added).collect();
         let parent_constants = nodes.fields.get(columns.constants)[p];
-        let child_constants = material.at(0.5 * parent_constants.horizon);
+        let child_constants = material.at(horizon_ratio * parent_constants.horizon);
         for (c, &i) in children.iter().enumerate() {
             nodes.fields.get_mut(columns.position)[i] = current[c];
             nodes.fields.get_mut(columns.constants)[i] = child_constants;

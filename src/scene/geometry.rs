@@ -49,7 +49,7 @@ pub enum Shape {
 }
 
 /// A shape converted to plain f64 coordinates of a fixed dimension.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Solid {
     Box {
         min: Vec<f64>,

@@ -601,6 +601,11 @@ pub struct RefinementTable {
     pub strain_factor: Option<f64>,
     /// Split generations (default 1, the paper's examples).
     pub levels: Option<u8>,
+    /// δ_child / δ_parent in [0.5, 1] (default 0.5, the paper's; its Table 3 also runs 1.0).
+    pub horizon_ratio: Option<f64>,
+    /// Particles inside split before the run (all `levels`), beside the criteria's splits: a
+    /// predefined refined region (not in the paper; a diagnosis and a user's choice).
+    pub region: Option<Shape>,
     /// false: the refinement is read but never applied (the coarse reference keeps the rest of
     /// the preset).
     #[serde(default = "yes_refine")]

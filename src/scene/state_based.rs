@@ -3,6 +3,7 @@
 //! one refinement level).
 
 use super::error::{ErrorContext, SceneError};
+use super::geometry::Solid;
 use super::schema::BondWeights;
 use super::schema::{IntegratorKind, ModelKind, Physics, Preset};
 use super::validate::{point, positive};
@@ -20,6 +21,9 @@ pub struct SplitRule {
     pub strain_factor: f64,
     /// Refinement levels (1: parents split once).
     pub levels: u8,
+    /// δ_child / δ_parent (zeng2024 Table 3 compares 0.5, the default and the paper's choice for
+    /// every other example, with 1.0, which keeps one horizon across a size change).
+    pub horizon_ratio: f64,
 }
 
 /// An OSB scene on a dual-horizon discretization.
@@ -29,6 +33,8 @@ pub struct StateBasedSpec {
     pub weights: BondWeights,
     /// `None`: no particle splits.
     pub refinement: Option<SplitRule>,
+    /// Particles split before the run (to every level), whatever the criteria say.
+    pub refined_region: Option<Solid>,
     /// ADR's tolerance; `None`: velocity-Verlet.
     pub relaxation: Option<f64>,
     pub openings: Vec<OpeningSpec>,
@@ -154,11 +160,28 @@ pub(super) fn state_based(
                     format!("must be 1, 2 or 3, got {levels}"),
                 ));
             }
-            Some(SplitRule {
-                damage,
-                strain_factor,
-                levels,
-            })
+            let horizon_ratio = r.horizon_ratio.unwrap_or(0.5);
+            if !(0.5..=1.0).contains(&horizon_ratio) {
+                return Err(ctx.error(
+                    "refinement.horizon_ratio",
+                    format!("must lie in [0.5, 1] (δ_child / δ_parent), got {horizon_ratio}"),
+                ));
+            }
+            let region = r
+                .region
+                .as_ref()
+                .map(|shape| shape.to_solid(2, "refinement.region"))
+                .transpose()
+                .map_err(|m| ctx.error("refinement.region", m))?;
+            Some((
+                SplitRule {
+                    damage,
+                    strain_factor,
+                    levels,
+                    horizon_ratio,
+                },
+                region,
+            ))
         }
         _ => None,
     };
@@ -206,7 +229,8 @@ pub(super) fn state_based(
             fracture_energy,
         },
         weights: p.discretization.bond_weights.unwrap_or_default(),
-        refinement,
+        refinement: refinement.as_ref().map(|r| r.0),
+        refined_region: refinement.and_then(|r| r.1),
         relaxation,
         openings,
     }))

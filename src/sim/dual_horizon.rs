@@ -222,7 +222,16 @@ impl DualHorizonSimulation {
         let mut splits = (0, 0);
         if let Some(rule) = spec.refinement {
             for _ in 0..rule.levels {
-                let parents = candidates(&rule, &nodes, &columns, &bonds, true);
+                let mut parents = candidates(&rule, &nodes, &columns, &bonds, true);
+                if let Some(region) = &spec.refined_region {
+                    let levels = nodes.fields.get(columns.split.level);
+                    parents.extend((0..nodes.len() as u32).filter(|&k| {
+                        let k = k as usize;
+                        levels[k] < rule.levels && region.contains(&nodes.reference()[k], 1e-12)
+                    }));
+                    parents.sort_unstable();
+                    parents.dedup();
+                }
                 if parents.is_empty() {
                     break;
                 }
@@ -233,6 +242,7 @@ impl DualHorizonSimulation {
                     &mut bonds,
                     &mut buckets,
                     &material,
+                    rule.horizon_ratio,
                     &scene.precracks,
                 );
                 splits = (splits.0 + 1, splits.1 + parents.len() as u64);
@@ -441,6 +451,7 @@ impl DualHorizonSimulation {
             &mut self.bonds,
             &mut self.buckets,
             &material,
+            rule.horizon_ratio,
             &self.scene.precracks,
         );
         self.held = held_list(&self.nodes, &self.columns);

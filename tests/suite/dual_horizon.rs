@@ -151,7 +151,7 @@ struct Refined {
 }
 
 impl Refined {
-    fn new(n: usize, weights: BondWeights) -> Refined {
+    fn new(n: usize, weights: BondWeights, horizon_ratio: f64) -> Refined {
         let material = material(0.25, Plane::Stress);
         let x = lattice(n);
         let volumes = vec![DX * DX * material.thickness; x.len()];
@@ -183,6 +183,7 @@ impl Refined {
             &mut bonds,
             &mut buckets,
             &material,
+            horizon_ratio,
             &[],
         );
         Refined {
@@ -221,7 +222,7 @@ impl Refined {
 /// particle to 1e-10 of a bulk bond force; a homogeneous strain's interface force is reported.
 #[test]
 fn rigid_motions_across_a_size_change_give_no_force() {
-    let mut body = Refined::new(16, BondWeights::Moments);
+    let mut body = Refined::new(16, BondWeights::Moments, 0.5);
     let n = body.nodes.len();
     assert_eq!(n, 16 * 8 + 4 * 16 * 8, "the right half split once");
     let x = body.nodes.reference().to_vec();
@@ -241,7 +242,7 @@ fn rigid_motions_across_a_size_change_give_no_force() {
         assert!(worst <= 1e-10 * scale, "{name}: {worst} vs scale {scale}");
     }
     // A homogeneous strain: zero in each uniform region's interior, a residual at the size
-    // change (DH-PD is not exact there for a non-constant strain energy of the two sizes).
+    // change (the horizon jump's, next test).
     let e = 1e-4;
     let y = deform(&x, [[1.0 + e, 0.0], [0.0, 1.0]], [0.0; 2]);
     let terms = body.forces(&y);
@@ -262,6 +263,50 @@ fn rigid_motions_across_a_size_change_give_no_force() {
         interior / scale
     );
     assert!(interior <= 1e-9 * scale, "interior {interior}");
+}
+
+/// Where the strain field's force at a size change comes from (docs/results.md, session 14):
+/// under a homogeneous strain the reactions k receives from its dual horizon H'_k are bonds
+/// owned by particles with their own horizon's constants. In the continuum each side's half
+/// of H'_k gives a force ∝ c(δ) δ² ∝ 1/δ, so a horizon jump δ_f ≠ δ_c leaves a net force
+/// ∝ (1/δ_f − 1/δ_c) — of the order of a free edge's — and one horizon on both sizes
+/// (zeng2024 Table 3's δ₂ = δ₁) leaves only the quadrature's residual. Asserted: the jump's
+/// interface force is at least 5 times the one-horizon body's (the continuum says unbounded)
+/// and at least a tenth of the free edge's traction force in the same field.
+#[test]
+fn a_horizon_jump_leaves_a_force_under_strain_one_horizon_does_not() {
+    let e = 1e-4;
+    let side = 24.0 * DX;
+    let interface_and_edge = |ratio: f64| {
+        let mut body = Refined::new(24, BondWeights::Moments, ratio);
+        let x = body.nodes.reference().to_vec();
+        let y = deform(&x, [[1.0 + e, 0.0], [0.0, 1.0 - 0.3 * e]], [0.0; 2]);
+        let terms = body.forces(&y);
+        let volumes = body.nodes.volumes().to_vec();
+        let (mut interface, mut edge) = (0.0f64, 0.0f64);
+        for (k, p) in x.iter().enumerate() {
+            if (p[1] - 0.5 * side).abs() > 4.0 * DX {
+                continue;
+            }
+            // Force per unit volume: children and parents compare.
+            let f = terms[k].force[0].abs() / volumes[k];
+            if (p[0] - 0.5 * side).abs() < 3.5 * DX {
+                interface = interface.max(f);
+            } else if p[0] < DX {
+                edge = edge.max(f);
+            }
+        }
+        (interface, edge)
+    };
+    let (jump, edge) = interface_and_edge(0.5);
+    let (one, _) = interface_and_edge(1.0);
+    println!(
+        "force per volume at the size change / at the free edge: horizon jump {:.3}, one horizon {:.3}",
+        jump / edge,
+        one / edge
+    );
+    assert!(jump >= 5.0 * one, "jump {jump:e}, one horizon {one:e}");
+    assert!(jump >= 0.1 * edge, "jump {jump:e}, edge {edge:e}");
 }
 
 /// Tada's crack-mouth opening d0 = 4σa/E f(a/L), zeng2024 (31)–(32).
@@ -630,4 +675,38 @@ fn the_branching_recording_grows_its_point_cloud() {
             .any(|t| t.contains("split")),
         "split events logged"
     );
+}
+
+/// The refinement's horizon ratio and predefined region are checked like every preset value:
+/// the message names the field and the allowed range.
+#[test]
+fn bad_refinement_options_are_refused_with_the_field_and_range() {
+    let refused = |set: &str| {
+        Scene::load_with("branching", None, &[set.to_string()])
+            .err()
+            .unwrap_or_else(|| panic!("`{set}` was accepted"))
+            .to_string()
+    };
+    let ratio = refused("refinement.horizon_ratio=0.3");
+    assert!(
+        ratio.contains("refinement.horizon_ratio") && ratio.contains("[0.5, 1]"),
+        "{ratio}"
+    );
+    let region = refused("refinement.region={ box = { min = [\"0 mm\"], max = [\"1 mm\"] } }");
+    assert!(region.contains("refinement.region"), "{region}");
+    let scene = Scene::load_with(
+        "branching",
+        Some("small"),
+        &[
+            "refinement.region={ box = { min = [\"60 mm\", \"15 mm\"], max = [\"70 mm\", \"25 mm\"] } }"
+                .into(),
+            "time.end=\"10 ns\"".into(),
+        ],
+    )
+    .unwrap();
+    let sim = DualHorizonSimulation::new(&scene).unwrap();
+    // 10 × 10 parents in the box split before the run, beside the pre-crack's 18.
+    let children = sim.levels().iter().filter(|&&l| l == 1).count();
+    assert_eq!(children % 4, 0);
+    assert!(children >= 4 * 100, "{children} children");
 }
