@@ -16,6 +16,8 @@
 //!   (the pre-crack is a surface; bonds broken during the run soften the material, as they do
 //!   for the parents, whose weights were fitted before the run).
 
+use rayon::prelude::*;
+
 use crate::discretization::buckets::Buckets;
 use crate::discretization::family::crosses;
 use crate::discretization::{Field, Nodes};
@@ -163,7 +165,7 @@ pub fn split(
             .unwrap_or(1)
     };
     let rows: Vec<NewRow> = rows_to_search
-        .iter()
+        .par_iter()
         .map(|&k| {
             let mut found = Vec::new();
             let delta = body.constants[k].horizon;

@@ -73,10 +73,13 @@ pub struct DualBonds {
     dual: Vec<u32>,
     /// Particles whose moment fit fell back to scalar factors.
     pub fallbacks: usize,
-    /// Per particle, whether the force pass also gives its damage and strains (the splitting
-    /// criteria's inputs): set for the particles that may still split; empty where nothing
-    /// splits.
-    pub criteria: Vec<bool>,
+    /// Per particle, the energy density from which the force pass also gives its strains
+    /// (the input of the strain criterion (16)); its damage (15) comes with every finite
+    /// gate. `f64::INFINITY`: the particle cannot split (nothing computed); empty where
+    /// nothing splits. Set by the caller (`strain_gate`).
+    pub criteria: Vec<f64>,
+    /// Per particle, Σ_{H_k} V_j + Σ_{H'_k} V_j: the denominator of the damage (14).
+    row_volume: Vec<f64>,
     stretch: Vec<f64>,
     cosine: Vec<f64>,
     bond_force: Vec<[f64; 2]>,
@@ -252,6 +255,20 @@ impl DualBonds {
             })
             .collect();
         self.rebuild_dual(n);
+        self.row_volume = (0..n)
+            .map(|k| {
+                let own: f64 = self.neighbors[self.range(k)]
+                    .iter()
+                    .map(|&j| body.volumes[j as usize])
+                    .sum();
+                let dual: f64 = self
+                    .dual_bonds(k)
+                    .iter()
+                    .map(|&b| body.volumes[self.owner[b as usize] as usize])
+                    .sum();
+                own + dual
+            })
+            .collect();
         self.stretch = vec![0.0; total];
         self.cosine = vec![0.0; total];
         self.bond_force = vec![[0.0; 2]; total];
@@ -460,9 +477,19 @@ impl DualBonds {
             t.force = force;
             t.energy_density = c.a * t.dilatation * t.dilatation + distortion;
             // The splitting criteria's inputs, while the particle's bonds are in cache.
-            if self.criteria.get(k).copied().unwrap_or(false) {
-                t.damage = self.damage_of(k, body.volumes);
-                t.strains = self.normal_strains(k, body, positions);
+            let gate = self.criteria.get(k).copied().unwrap_or(f64::INFINITY);
+            if gate.is_finite() {
+                let lost = self.lost_volume(k, body.volumes);
+                t.damage = if self.row_volume[k] > 0.0 {
+                    lost / self.row_volume[k]
+                } else {
+                    0.0
+                };
+                t.strains = if lost > 0.0 || t.energy_density >= gate {
+                    self.normal_strains(k, body, positions)
+                } else {
+                    [0.0; 2]
+                };
             }
         });
         broken
@@ -491,6 +518,22 @@ impl DualBonds {
             .into_par_iter()
             .map(|k| self.damage_of(k, volumes))
             .collect()
+    }
+
+    /// Σ V_j over particle k's broken bonds and broken dual bonds (the numerator of (14)).
+    fn lost_volume(&self, k: usize, volumes: &[f64]) -> f64 {
+        let mut lost = 0.0;
+        for b in self.range(k) {
+            if self.intact[b] == 0 {
+                lost += volumes[self.neighbors[b] as usize];
+            }
+        }
+        for &b in self.dual_bonds(k) {
+            if self.intact[b as usize] == 0 {
+                lost += volumes[self.owner[b as usize] as usize];
+            }
+        }
+        lost
     }
 
     /// Damage (14) of particle k:

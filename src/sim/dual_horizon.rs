@@ -146,6 +146,8 @@ pub struct DualHorizonSimulation {
     pub split_parents: u64,
     events: Vec<String>,
     velocity_scale: f64,
+    /// Whether (16)'s strains are skipped below the energy gate (`gate_strains`).
+    strain_gate: bool,
 }
 
 fn body<'a>(nodes: &'a Nodes<2>, columns: &Columns, material: &OsbMaterial) -> Body<'a> {
@@ -291,6 +293,7 @@ impl DualHorizonSimulation {
             split_parents: splits.1,
             events: Vec::new(),
             velocity_scale: 1.0,
+            strain_gate: true,
         };
         if sim.split_parents > 0 {
             sim.events.push(format!(
@@ -422,16 +425,39 @@ impl DualHorizonSimulation {
     }
 
     /// The particles below the level cap get their split criteria from the force pass; those
-    /// at the cap (children of the last level) skip them.
+    /// at the cap (children of the last level) skip them. The strains of (16) are computed
+    /// only where they can pass α s_c: if ε_xx and ε_yy both exceed t, the classical energy
+    /// density μ ε_dev:ε_dev + ½ κ (tr ε)² is at least 2 κ t², so a particle whose PD energy
+    /// density W_k is below a quarter of that (a margin for the horizon's averaging) and
+    /// whose bonds are all intact cannot meet (16); any broken bond computes them.
     fn mark_splittable(&mut self) {
         let Some(rule) = self.spec.refinement else {
             return;
         };
+        let (kappa, gated) = (self.spec.material.bulk_modulus(), self.strain_gate);
         let levels = self.nodes.fields.get(self.columns.split.level);
+        let constants = self.nodes.fields.get(self.columns.split.constants);
         self.bonds.criteria.clear();
         self.bonds
             .criteria
-            .extend(levels.iter().map(|&l| l < rule.levels));
+            .extend(levels.iter().zip(constants).map(|(&l, c)| {
+                if l >= rule.levels {
+                    f64::INFINITY
+                } else if gated {
+                    let t = rule.strain_factor * c.critical_stretch;
+                    0.5 * kappa * t * t
+                } else {
+                    f64::MIN
+                }
+            }));
+    }
+
+    /// Verification: `false` computes (16)'s strains for every particle that may split, as
+    /// without the energy gate of `mark_splittable` (the same splits, bit for bit, where the
+    /// gate's bound holds).
+    pub fn gate_strains(&mut self, on: bool) {
+        self.strain_gate = on;
+        self.mark_splittable();
     }
 
     /// Splits every particle that meets (15) or (16); returns the number split.
@@ -1024,6 +1050,7 @@ impl Stepper for DualHorizonSimulation {
             Param::SplitDamage(phi) => rule.damage = crate::scene::check_split_damage(phi)?,
             Param::SplitStrain(alpha) => {
                 rule.strain_factor = crate::scene::check_split_strain(alpha)?;
+                self.mark_splittable();
             }
             Param::Chi(_) => {
                 return Err("a dual-horizon scene has no hybrid scheme: χ is recorded only".into());

@@ -710,3 +710,46 @@ fn bad_refinement_options_are_refused_with_the_field_and_range() {
     assert_eq!(children % 4, 0);
     assert!(children >= 4 * 100, "{children} children");
 }
+
+/// The strain criterion (16) is evaluated only where the energy density can reach it (the
+/// bound 2 κ t² of `mark_splittable`, with a margin of 4): on the expanding plate, whose
+/// intact particles split by (16), and on Case 2's adaptive run (`branching` small, 30 µs),
+/// the gated run splits exactly the particles the ungated one does (positions equal bit for
+/// bit at every check).
+#[test]
+fn the_strain_gate_changes_no_split() {
+    let plate = Scene::from_text("expanding-plate.toml", EXPANDING_PLATE, None).unwrap();
+    let branching = Scene::load_with("branching", Some("small"), &[]).unwrap();
+    for (scene, every) in [(plate, 5), (branching, 100)] {
+        let mut gated = DualHorizonSimulation::new(&scene).unwrap();
+        let mut ungated = DualHorizonSimulation::new(&scene).unwrap();
+        ungated.gate_strains(false);
+        let steps = gated.info().total_steps;
+        while gated.steps_done() < steps {
+            gated.step().unwrap();
+            ungated.step().unwrap();
+            if gated.steps_done().is_multiple_of(every) {
+                assert_eq!(
+                    gated.len(),
+                    ungated.len(),
+                    "{}: step {}",
+                    scene.name,
+                    gated.steps_done()
+                );
+                assert!(
+                    gated.positions() == ungated.positions(),
+                    "{}: step {}",
+                    scene.name,
+                    gated.steps_done()
+                );
+            }
+        }
+        println!(
+            "{}: {} particles ({} parents split)",
+            scene.name,
+            gated.len(),
+            gated.split_parents
+        );
+        assert!(gated.split_parents > 0);
+    }
+}
