@@ -758,19 +758,24 @@ fn candidates(
     let levels = nodes.fields.get(c.split.level);
     let constants = nodes.fields.get(c.split.constants);
     let terms = nodes.fields.get(c.terms);
+    let wants = |k: usize| {
+        if levels[k] >= rule.levels {
+            return false;
+        }
+        let (damage, strains) = if damage_only {
+            (bonds.damage_of(k, nodes.volumes()), [0.0; 2])
+        } else {
+            (terms[k].damage, terms[k].strains)
+        };
+        splitting::wants(rule, damage, strains, &constants[k], levels[k])
+    };
+    // Most steps split nothing: look first, allocate only when something splits.
+    if !(0..nodes.len()).into_par_iter().any(wants) {
+        return Vec::new();
+    }
     (0..nodes.len())
         .into_par_iter()
-        .filter(|&k| {
-            if levels[k] >= rule.levels {
-                return false;
-            }
-            let (damage, strains) = if damage_only {
-                (bonds.damage_of(k, nodes.volumes()), [0.0; 2])
-            } else {
-                (terms[k].damage, terms[k].strains)
-            };
-            splitting::wants(rule, damage, strains, &constants[k], levels[k])
-        })
+        .filter(|&k| wants(k))
         .map(|k| k as u32)
         .collect()
 }
