@@ -94,10 +94,10 @@ pub fn split(
             .iter()
             .map(|&p| {
                 let p = p as usize;
+                let strain = bonds.normal_strains(p, &body, positions);
                 let quarter = 0.25 * spacing[p];
                 let (x, y) = (body.reference[p], positions[p]);
                 let reference = SIGNS.map(|s| [x[0] + quarter * s[0], x[1] + quarter * s[1]]);
-                let strain = bonds.normal_strains(p, &body, positions);
                 let current = SIGNS.map(|s| {
                     [
                         y[0] + quarter * (1.0 + strain[0]) * s[0],

@@ -76,7 +76,7 @@ pub struct DualBonds {
     /// Per particle, the energy density from which the force pass also gives its strains
     /// (the input of the strain criterion (16)); its damage (15) comes with every finite
     /// gate. `f64::INFINITY`: the particle cannot split (nothing computed); empty where
-    /// nothing splits. Set by the caller (`strain_gate`).
+    /// nothing splits. Set by the simulation (`mark_splittable`).
     pub criteria: Vec<f64>,
     /// Per particle, Σ_{H_k} V_j + Σ_{H'_k} V_j: the denominator of the damage (14).
     row_volume: Vec<f64>,
@@ -537,7 +537,10 @@ impl DualBonds {
     }
 
     /// Damage (14) of particle k:
-    /// 1 − (Σ_{H_k} μ V_j + Σ_{H'_k} μ V_j) / (Σ_{H_k} V_j + Σ_{H'_k} V_j).
+    /// 1 − (Σ_{H_k} μ V_j + Σ_{H'_k} μ V_j) / (Σ_{H_k} V_j + Σ_{H'_k} V_j). The force pass's
+    /// split check reads the same quantity as `lost_volume / row_volume` (equal to rounding);
+    /// frames keep this form, whose values the crack-angle and branch estimators threshold
+    /// (a damage of exactly 0.5 on the lattice must stay on the same side of 0.5).
     pub fn damage_of(&self, k: usize, volumes: &[f64]) -> f64 {
         let (mut intact, mut all) = (0.0, 0.0);
         for b in self.range(k) {
