@@ -6,6 +6,7 @@
 //! liquid–liquid for the whole run: the invariant "no phase change in Ω_w" holds by
 //! construction and is still counted in every frame.
 
+use crate::scheme::wls::Collocation;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
@@ -34,9 +35,9 @@ impl FixedHybrid {
         positions: &[[f64; D]],
         families: &Families,
         kernel: &DiffusionKernel,
-        k_aux: usize,
+        rule: impl Into<Collocation>,
     ) -> Result<FixedHybrid, FitError> {
-        let wls = liquid_operator(&mask, positions, families, kernel, k_aux)?;
+        let wls = liquid_operator(&mask, positions, families, kernel, rule)?;
         Ok(FixedHybrid {
             mask,
             runs: RowRuns::new(&wls),
@@ -111,7 +112,7 @@ pub fn liquid_operator<const D: usize>(
     positions: &[[f64; D]],
     families: &Families,
     kernel: &DiffusionKernel,
-    k_aux: usize,
+    rule: impl Into<Collocation>,
 ) -> Result<VectorOperator<1>, FitError> {
     let rows: Vec<u32> = (0..mask.len() as u32)
         .filter(|&i| mask[i as usize] == SchemeClass::Wls)
@@ -124,13 +125,5 @@ pub fn liquid_operator<const D: usize>(
         kernel.horizon,
         kernel.influence,
     );
-    wls::diffusion_stencil_operator(
-        &rows,
-        positions,
-        families,
-        &basis,
-        &l,
-        kernel.horizon,
-        k_aux,
-    )
+    wls::diffusion_stencil_operator(&rows, positions, families, &basis, &l, kernel.horizon, rule)
 }

@@ -10,6 +10,7 @@
 //! the positions u^{n+1} right after the drift, before the force pass breaks any bond: the thesis's
 //! "end of step n, before the critical zone is evaluated for damage".
 
+use crate::scheme::wls::Collocation;
 use rayon::prelude::*;
 
 use super::bonds::{BondView, bond_squares, critical_margin};
@@ -131,20 +132,20 @@ pub fn initial_mask<const D: usize>(
 }
 
 impl<const D: usize> Hybrid<D> {
-    /// Builds the mask and the WLS-2 blocks of the Ω_w nodes (k_aux: auxiliary grid δ/k_aux).
+    /// Builds the mask and the WLS-2 blocks of the Ω_w nodes (rule: the collocation rule).
     pub fn new(
         spec: HybridSpec,
         mask: Vec<SchemeClass>,
         reference: &[[f64; D]],
         families: &Families,
         law: &PmbLaw,
-        k_aux: usize,
+        rule: impl Into<Collocation>,
     ) -> Result<Self, FitError> {
         let rows: Vec<u32> = (0..mask.len() as u32)
             .filter(|&i| mask[i as usize] == SchemeClass::Wls)
             .collect();
         // (3.54)–(3.56): the linearized bond-based operator over the full ball.
-        let wls = WlsRows::elasticity(&rows, reference, families, law, k_aux)?;
+        let wls = WlsRows::elasticity(&rows, reference, families, law, rule)?;
         let standard_nodes = mask.len() - rows.len();
         let mask_len = mask.len();
         let mut hybrid = Hybrid {

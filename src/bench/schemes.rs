@@ -105,7 +105,7 @@ fn measure<const D: usize>(case: &Case, budget: f64, out: &mut String) -> Result
         &basis,
         &l,
         horizon,
-        case.k_aux,
+        wls::Collocation::grid(case.k_aux),
     )
     .map_err(|e| e.to_string())?;
     let assembly = started.elapsed().as_secs_f64() / rows.len() as f64;
@@ -135,7 +135,7 @@ fn measure<const D: usize>(case: &Case, budget: f64, out: &mut String) -> Result
         &basis,
         &l_c,
         horizon,
-        case.k_aux,
+        wls::Collocation::grid(case.k_aux),
     )
     .map_err(|e| e.to_string())?;
     let field: Vec<f64> = lattice.positions.iter().map(|x| x[0] * x[0]).collect();

@@ -311,8 +311,9 @@ pub enum Transfer {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SchemeSpec {
     pub kind: SchemeKind,
-    /// WLS auxiliary-grid factor k_aux (spacing δ/k_aux); 0 for the standard scheme.
-    pub collocation_factor: usize,
+    /// WLS collocation rule (auxiliary grid δ/k_aux, or orbits); for the standard scheme the
+    /// unused grid factor 0.
+    pub collocation: crate::scheme::wls::Collocation,
 }
 
 #[derive(Debug, Clone)]

@@ -148,6 +148,11 @@ pub struct HybridTable {
     pub check_every: u64,
     /// WLS auxiliary-grid factor k_aux in Ω_w (default: 29 collocation nodes in 2D, 123 in 3D).
     pub collocation_factor: Option<usize>,
+    /// 2D only, instead of the auxiliary grid: the Ω_w collocation targets as whole orbits
+    /// [a, b] of lattice offsets (±a, ±b), (±b, ±a) in lattice spacings (issue 14).
+    pub collocation_orbits: Option<Vec<Vec<u32>>>,
+    /// Exponent a of the Ω_w fit weight exp(−a d²/r̄²) (the papers' (3.26): 16).
+    pub fit_weight: Option<f64>,
 }
 
 impl Default for HybridTable {
@@ -158,6 +163,8 @@ impl Default for HybridTable {
             check: CheckSet::default(),
             check_every: default_every(),
             collocation_factor: None,
+            collocation_orbits: None,
+            fit_weight: None,
         }
     }
 }

@@ -9,6 +9,7 @@ use super::schema::{
 use super::units::{Measure, Relative};
 use super::*;
 use crate::model::pmb::{Failure, PmbConstants, Stiffness};
+use crate::scheme::wls::Collocation;
 
 /// Directed bonds a scene may have (≈ 13 bytes each: 16 GB).
 const MAX_BONDS: f64 = 1.2e9;
@@ -81,7 +82,7 @@ pub(super) fn validate(
         }
     };
     let physics = p.physics;
-    let scheme = scheme(p, ctx, dim)?;
+    let scheme = scheme(p, ctx, dim, spacing)?;
     let boundary = p
         .boundary
         .iter()
@@ -665,7 +666,12 @@ fn diffusion(
 
 /// The scheme and, for WLS, the auxiliary-grid factor k_aux (defaults from the papers' tables:
 /// 1D C²/C⁴/C⁶ → 2/5/6 (5/11/13 nodes), 2D C²/C⁴ → 3/4 (29/49), 3D C² → 3 (123)).
-fn scheme(p: &Preset, ctx: &ErrorContext, dim: usize) -> Result<SchemeSpec, SceneError> {
+fn scheme(
+    p: &Preset,
+    ctx: &ErrorContext,
+    dim: usize,
+    spacing: f64,
+) -> Result<SchemeSpec, SceneError> {
     let d = &p.discretization;
     let kind = d.scheme;
     let order = match kind.wls_order() {
@@ -674,13 +680,13 @@ fn scheme(p: &Preset, ctx: &ErrorContext, dim: usize) -> Result<SchemeSpec, Scen
         None if kind.is_hybrid() => {
             return Ok(SchemeSpec {
                 kind,
-                collocation_factor: p.hybrid.collocation_factor.unwrap_or(3),
+                collocation: hybrid_collocation(p, ctx, dim, spacing)?,
             });
         }
         None => {
             return Ok(SchemeSpec {
                 kind,
-                collocation_factor: 0,
+                collocation: Collocation::grid(0),
             });
         }
     };
@@ -709,7 +715,7 @@ fn scheme(p: &Preset, ctx: &ErrorContext, dim: usize) -> Result<SchemeSpec, Scen
     };
     Ok(SchemeSpec {
         kind,
-        collocation_factor,
+        collocation: Collocation::grid(collocation_factor),
     })
 }
 
@@ -749,6 +755,61 @@ fn hybrid(
         check: h.check,
         check_every: h.check_every,
     }))
+}
+
+/// The Ω_w collocation rule of a hybrid: the papers' auxiliary grid δ/k_aux (default k_aux = 3:
+/// 29 nodes in 2D, 123 in 3D), or with `hybrid.collocation_orbits` (2D only) whole orbits of
+/// lattice offsets and the weight exponent `hybrid.fit_weight` (default the papers' 16).
+fn hybrid_collocation(
+    p: &Preset,
+    ctx: &ErrorContext,
+    dim: usize,
+    spacing: f64,
+) -> Result<Collocation, SceneError> {
+    let h = &p.hybrid;
+    let exponent = h
+        .fit_weight
+        .unwrap_or(crate::scheme::wls::PAPERS_WEIGHT_EXPONENT);
+    let Some(orbits) = &h.collocation_orbits else {
+        let k = match h.collocation_factor {
+            Some(k) => collocation_factor(ctx, "hybrid.collocation_factor", k)?,
+            None => 3,
+        };
+        let mut rule = Collocation::grid(k);
+        if h.fit_weight.is_some() {
+            // The same range check as the orbit rule's.
+            Collocation::orbits(spacing, &[[1, 0]], exponent)
+                .map_err(|m| ctx.error("hybrid.fit_weight", m))?;
+            rule.weight_exponent = exponent;
+        }
+        return Ok(rule);
+    };
+    if h.collocation_factor.is_some() {
+        return Err(ctx.error(
+            "hybrid.collocation_orbits",
+            "give either hybrid.collocation_factor (the auxiliary grid) or \
+             hybrid.collocation_orbits, not both",
+        ));
+    }
+    if dim != 2 {
+        return Err(ctx.error(
+            "hybrid.collocation_orbits",
+            format!("orbits of lattice offsets are defined in 2D only; this scene is {dim}D"),
+        ));
+    }
+    let fixed: Vec<[u8; 2]> = orbits
+        .iter()
+        .map(|o| match o.as_slice() {
+            [a, b] if *a <= 64 && *b <= 64 => Ok([*a as u8, *b as u8]),
+            _ => Err(ctx.error(
+                "hybrid.collocation_orbits",
+                format!("each orbit is [a, b] with 0 ≤ a, b ≤ 64 (in lattice spacings), got {o:?}"),
+            )),
+        })
+        .collect::<Result<_, _>>()?;
+    let rule = Collocation::orbits(spacing, &fixed, exponent)
+        .map_err(|m| ctx.error("hybrid.collocation_orbits", m))?;
+    Ok(rule)
 }
 
 /// Boxes grow by the thickness of their `outside` layers.

@@ -68,8 +68,157 @@ impl Basis {
 /// WLS weight (3.26), w̄(d) = (1 − e^{64 − 16 d²/r̄²})/(1 − e^{64}), in the equivalent form
 /// (e^{−16 d²/r̄²} − e^{−64})/(1 − e^{−64}) that does not overflow.
 pub fn weight(d: f64, r_max: f64) -> f64 {
-    let e64 = (-64.0f64).exp();
-    ((-16.0 * d * d / (r_max * r_max)).exp() - e64) / (1.0 - e64)
+    weight_with(PAPERS_WEIGHT_EXPONENT, d, r_max)
+}
+
+/// The exponent a = 16 of the papers' weight (3.26).
+pub const PAPERS_WEIGHT_EXPONENT: f64 = 16.0;
+
+/// The weight (3.26) with exponent a in place of 16: (e^{−a d²/r̄²} − e^{−4a})/(1 − e^{−4a}),
+/// so that w̄(0) = 1 and w̄(2 r̄) = 0 as in the papers' form.
+pub fn weight_with(a: f64, d: f64, r_max: f64) -> f64 {
+    let floor = (-4.0 * a).exp();
+    ((-a * d * d / (r_max * r_max)).exp() - floor) / (1.0 - floor)
+}
+
+/// Largest number of symmetric orbits in an [`Collocation`] template.
+pub const MAX_ORBITS: usize = 8;
+
+/// How a WLS node's collocation targets are laid out (seed-004 §2.2, Remark 2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Targets {
+    /// The papers' auxiliary grid of spacing δ/k_aux, its points within the ball.
+    Grid(usize),
+    /// 2D only: whole orbits of lattice offsets (a, b) under the square's symmetries (±a, ±b),
+    /// (±b, ±a), in units of `spacing` (the lattice spacing Δx). A choice outside the papers
+    /// (issue 14): a wide stencil whose offsets still generate the lattice, so that its
+    /// stable step approaches the standard scheme's without decoupled sub-lattices.
+    Orbits {
+        spacing: f64,
+        orbits: [[u8; 2]; MAX_ORBITS],
+        count: usize,
+    },
+}
+
+/// A collocation rule: where the targets lie, and the fit's weight exponent.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Collocation {
+    pub targets: Targets,
+    /// Exponent a of the weight exp(−a d²/r̄²) (the papers: 16).
+    pub weight_exponent: f64,
+}
+
+impl From<usize> for Collocation {
+    /// The papers' auxiliary grid δ/k_aux.
+    fn from(k_aux: usize) -> Self {
+        Collocation::grid(k_aux)
+    }
+}
+
+impl Collocation {
+    /// The papers' rule: auxiliary grid δ/k_aux, weight (3.26).
+    pub fn grid(k_aux: usize) -> Self {
+        Collocation {
+            targets: Targets::Grid(k_aux),
+            weight_exponent: PAPERS_WEIGHT_EXPONENT,
+        }
+    }
+
+    /// The auxiliary grid's factor, if the rule is the papers' grid.
+    pub fn grid_factor(&self) -> Option<usize> {
+        match self.targets {
+            Targets::Grid(k) => Some(k),
+            Targets::Orbits { .. } => None,
+        }
+    }
+
+    /// Orbits of lattice offsets (each [a, b] with a, b ≥ 0, not both 0) with weight exponent a.
+    pub fn orbits(spacing: f64, orbits: &[[u8; 2]], weight_exponent: f64) -> Result<Self, String> {
+        if orbits.is_empty() || orbits.len() > MAX_ORBITS {
+            return Err(format!(
+                "needs 1 to {MAX_ORBITS} orbits [a, b], got {}",
+                orbits.len()
+            ));
+        }
+        if let Some(o) = orbits.iter().find(|o| o[0] == 0 && o[1] == 0) {
+            return Err(format!(
+                "orbit {o:?} is the node itself; give offsets (a, b) ≠ (0, 0)"
+            ));
+        }
+        if !(weight_exponent.is_finite() && (0.0..=64.0).contains(&weight_exponent)) {
+            return Err(format!(
+                "the weight exponent must be in [0, 64] (the papers' is 16), got {weight_exponent}"
+            ));
+        }
+        let mut fixed = [[0u8; 2]; MAX_ORBITS];
+        fixed[..orbits.len()].copy_from_slice(orbits);
+        Ok(Collocation {
+            targets: Targets::Orbits {
+                spacing,
+                orbits: fixed,
+                count: orbits.len(),
+            },
+            weight_exponent,
+        })
+    }
+
+    /// The target offsets from the node (the node itself excluded), in a fixed order.
+    fn target_offsets<const D: usize>(&self, horizon: f64) -> Vec<[f64; D]> {
+        match self.targets {
+            Targets::Grid(k_aux) => {
+                let h = horizon / k_aux as f64;
+                let k = k_aux as i64;
+                let mut out = Vec::new();
+                let mut index = [-k; D];
+                'grid: loop {
+                    let n2: i64 = index.iter().map(|v| v * v).sum();
+                    if n2 > 0 && n2 <= k * k {
+                        out.push(std::array::from_fn(|a| index[a] as f64 * h));
+                    }
+                    for v in index.iter_mut() {
+                        *v += 1;
+                        if *v <= k {
+                            continue 'grid;
+                        }
+                        *v = -k;
+                    }
+                    break;
+                }
+                out
+            }
+            Targets::Orbits {
+                spacing,
+                orbits,
+                count,
+            } => {
+                let mut out: Vec<[f64; D]> = Vec::new();
+                for &[a, b] in &orbits[..count] {
+                    let (a, b) = (a as f64, b as f64);
+                    for (x, y) in [(a, b), (b, a)] {
+                        for (sx, sy) in [(1.0, 1.0), (-1.0, 1.0), (1.0, -1.0), (-1.0, -1.0)] {
+                            let mut p = [0.0; D];
+                            p[0] = sx * x * spacing;
+                            if D > 1 {
+                                p[1] = sy * y * spacing;
+                            }
+                            if !out.contains(&p) {
+                                out.push(p);
+                            }
+                        }
+                    }
+                }
+                out
+            }
+        }
+    }
+
+    /// The spacing that sets the search cells and the tie tolerance.
+    fn cell(&self, horizon: f64) -> f64 {
+        match self.targets {
+            Targets::Grid(k_aux) => horizon / k_aux as f64,
+            Targets::Orbits { spacing, .. } => spacing,
+        }
+    }
 }
 
 /// Radial moment R(s) = ∫_0^δ ω(r) r^s dr (seed-thesis-ch2-3 §3.5), s > −1.
@@ -181,10 +330,11 @@ pub fn collocation_set<const D: usize>(
     positions: &[[f64; D]],
     families: &Families,
     horizon: f64,
-    k_aux: usize,
+    rule: impl Into<Collocation>,
 ) -> Vec<u32> {
+    let rule: Collocation = rule.into();
     let candidates = collocation_candidates(i, families);
-    select_collocation_set(i, &candidates, positions, horizon, k_aux)
+    select_collocation_set(i, &candidates, positions, horizon, rule)
 }
 
 /// A node's collocation candidates: itself and its family, in index order.
@@ -206,21 +356,20 @@ fn select_collocation_set<const D: usize>(
     candidates: &[u32],
     positions: &[[f64; D]],
     horizon: f64,
-    k_aux: usize,
+    rule: Collocation,
 ) -> Vec<u32> {
-    let h = horizon / k_aux as f64;
-    let k = k_aux as i64;
+    let h = rule.cell(horizon);
     let mut chosen = vec![i as u32];
     let mut taken = vec![false; candidates.len()];
     if let Ok(self_slot) = candidates.binary_search(&(i as u32)) {
         taken[self_slot] = true;
     }
-    // Candidates bucketed by their offset rounded to the auxiliary grid: a target's nearest
+    // Candidates bucketed by their offset rounded to cells of side h: a target's nearest
     // candidate is searched in the 3^D cells around it first. Anything outside them is at
     // least 1.5 h away on some axis, so a hit closer than that is the exact nearest (ties
     // included); otherwise the whole family is scanned.
-    // Dense buckets (a head per cell, a chain through `next`), cells within k + 2 of the node.
-    let reach = k + 2;
+    // Dense buckets (a head per cell, a chain through `next`), cells within reach of the node.
+    let reach = (horizon / h).ceil() as i64 + 2;
     let side = (2 * reach + 1) as usize;
     let cell_index = |cell: [i64; D]| -> Option<usize> {
         cell.iter().try_fold(0usize, |acc, &c| {
@@ -244,49 +393,38 @@ fn select_collocation_set<const D: usize>(
     };
     let closer = |a: &(f64, usize), b: &(f64, usize)| nearer(a, b, h);
     let exact_within = (1.5 * h).powi(2);
-    let mut index = [-k; D];
-    'grid: loop {
-        let n2: i64 = index.iter().map(|v| v * v).sum();
-        if n2 > 0 && n2 <= k * k {
-            let target: [f64; D] = std::array::from_fn(|a| positions[i][a] + index[a] as f64 * h);
-            let mut near: Option<(f64, usize)> = None;
-            for code in 0..3usize.pow(D as u32) {
-                let mut c = code;
-                let cell: [i64; D] = std::array::from_fn(|a| {
-                    let v = index[a] + (c % 3) as i64 - 1;
-                    c /= 3;
-                    v
-                });
-                let mut slot = cell_index(cell).map_or(usize::MAX, |c| head[c]);
-                while slot != usize::MAX {
-                    if !taken[slot] {
-                        let cand = (distance2(slot, &target), slot);
-                        if near.is_none_or(|n| closer(&cand, &n).is_lt()) {
-                            near = Some(cand);
-                        }
-                    }
-                    slot = next[slot];
-                }
-            }
-            let best = near.filter(|n| n.0 < exact_within).or_else(|| {
-                (0..candidates.len())
-                    .filter(|&slot| !taken[slot])
-                    .map(|slot| (distance2(slot, &target), slot))
-                    .min_by(closer)
+    for offset in rule.target_offsets::<D>(horizon) {
+        let target: [f64; D] = std::array::from_fn(|a| positions[i][a] + offset[a]);
+        let centre: [i64; D] = std::array::from_fn(|a| (offset[a] / h).round() as i64);
+        let mut near: Option<(f64, usize)> = None;
+        for code in 0..3usize.pow(D as u32) {
+            let mut c = code;
+            let cell: [i64; D] = std::array::from_fn(|a| {
+                let v = centre[a] + (c % 3) as i64 - 1;
+                c /= 3;
+                v
             });
-            if let Some((_, slot)) = best {
-                taken[slot] = true;
-                chosen.push(candidates[slot]);
+            let mut slot = cell_index(cell).map_or(usize::MAX, |c| head[c]);
+            while slot != usize::MAX {
+                if !taken[slot] {
+                    let cand = (distance2(slot, &target), slot);
+                    if near.is_none_or(|n| closer(&cand, &n).is_lt()) {
+                        near = Some(cand);
+                    }
+                }
+                slot = next[slot];
             }
         }
-        for v in index.iter_mut() {
-            *v += 1;
-            if *v <= k {
-                continue 'grid;
-            }
-            *v = -k;
+        let best = near.filter(|n| n.0 < exact_within).or_else(|| {
+            (0..candidates.len())
+                .filter(|&slot| !taken[slot])
+                .map(|slot| (distance2(slot, &target), slot))
+                .min_by(closer)
+        });
+        if let Some((_, slot)) = best {
+            taken[slot] = true;
+            chosen.push(candidates[slot]);
         }
-        break;
     }
     chosen
 }
@@ -302,9 +440,10 @@ pub fn collocation_sets<const D: usize>(
     positions: &[[f64; D]],
     families: &Families,
     horizon: f64,
-    k_aux: usize,
+    rule: impl Into<Collocation>,
 ) -> Vec<Vec<u32>> {
-    collocation_sets_counted(rows, positions, families, horizon, k_aux).0
+    let rule: Collocation = rule.into();
+    collocation_sets_counted(rows, positions, families, horizon, rule).0
 }
 
 /// [`collocation_sets`] and how many rows took the translated template.
@@ -313,7 +452,7 @@ fn collocation_sets_counted<const D: usize>(
     positions: &[[f64; D]],
     families: &Families,
     horizon: f64,
-    k_aux: usize,
+    rule: Collocation,
 ) -> (Vec<Vec<u32>>, usize) {
     use rayon::prelude::*;
     let largest = rows.iter().map(|&i| i as usize).reduce(|a, b| {
@@ -331,11 +470,10 @@ fn collocation_sets_counted<const D: usize>(
         std::array::from_fn(|a| positions[j as usize][a] - positions[i][a])
     };
     let template_offsets: Vec<[f64; D]> = template.iter().map(|&j| offset(t, j)).collect();
-    let template_slots: Vec<usize> =
-        select_collocation_set(t, &template, positions, horizon, k_aux)
-            .iter()
-            .filter_map(|j| template.binary_search(j).ok())
-            .collect();
+    let template_slots: Vec<usize> = select_collocation_set(t, &template, positions, horizon, rule)
+        .iter()
+        .filter_map(|j| template.binary_search(j).ok())
+        .collect();
     let tolerance = 1e-12 * horizon;
     let sets: Vec<(Vec<u32>, bool)> = rows
         .par_iter()
@@ -350,7 +488,7 @@ fn collocation_sets_counted<const D: usize>(
             let set = if translated {
                 template_slots.iter().map(|&s| candidates[s]).collect()
             } else {
-                select_collocation_set(i, &candidates, positions, horizon, k_aux)
+                select_collocation_set(i, &candidates, positions, horizon, rule)
             };
             (set, translated)
         })
@@ -396,6 +534,7 @@ pub fn fit_matrix<const D: usize>(
     positions: &[[f64; D]],
     basis: &Basis,
     horizon: f64,
+    weight_exponent: f64,
 ) -> Result<DMatrix<f64>, FitError> {
     let (np, nc) = (basis.len(), collocation.len());
     if nc < np {
@@ -421,7 +560,11 @@ pub fn fit_matrix<const D: usize>(
     let mut a = DMatrix::<f64>::zeros(np, np);
     for (c, x) in xi.iter().enumerate() {
         basis.eval(x, &mut row);
-        let w = weight(x.iter().map(|v| v * v).sum::<f64>().sqrt(), r_max);
+        let w = weight_with(
+            weight_exponent,
+            x.iter().map(|v| v * v).sum::<f64>().sqrt(),
+            r_max,
+        );
         for m in 0..np {
             weighted_rows[(m, c)] = w * row[m];
             for n in 0..np {
@@ -478,15 +621,22 @@ fn fitted_rows<const D: usize, T: Send>(
     families: &Families,
     basis: &Basis,
     horizon: f64,
-    k_aux: usize,
+    rule: Collocation,
     block: impl Fn(&DMatrix<f64>) -> Vec<T> + Sync,
 ) -> Result<Vec<Row<T>>, FitError> {
     use rayon::prelude::*;
-    collocation_sets(rows, positions, families, horizon, k_aux)
+    collocation_sets(rows, positions, families, horizon, rule)
         .into_par_iter()
         .zip(rows)
         .map(|(set, &i)| {
-            let q = fit_matrix(i as usize, &set, positions, basis, horizon)?;
+            let q = fit_matrix(
+                i as usize,
+                &set,
+                positions,
+                basis,
+                horizon,
+                rule.weight_exponent,
+            )?;
             Ok((set, block(&q)))
         })
         .collect()
@@ -501,10 +651,11 @@ pub fn diffusion_operator<const D: usize>(
     basis: &Basis,
     l: &[f64],
     horizon: f64,
-    k_aux: usize,
+    rule: impl Into<Collocation>,
 ) -> Result<ScalarOperator, FitError> {
+    let rule: Collocation = rule.into();
     let l_scaled = scale_to_fit(basis, l, horizon).transpose();
-    let blocks = fitted_rows(rows, positions, families, basis, horizon, k_aux, |q| {
+    let blocks = fitted_rows(rows, positions, families, basis, horizon, rule, |q| {
         (&l_scaled * q).iter().copied().collect()
     })?;
     Ok(ScalarOperator::from_rows(rows, blocks))
@@ -521,8 +672,9 @@ pub fn elasticity_operator<const D: usize>(
     basis: &Basis,
     l: &[Vec<Vec<f64>>],
     horizon: f64,
-    k_aux: usize,
+    rule: impl Into<Collocation>,
 ) -> Result<VectorOperator<D>, FitError> {
+    let rule: Collocation = rule.into();
     let scaled: Vec<Vec<nalgebra::RowDVector<f64>>> = l
         .iter()
         .map(|row| {
@@ -531,7 +683,7 @@ pub fn elasticity_operator<const D: usize>(
                 .collect()
         })
         .collect();
-    stenciled_operator(rows, positions, families, basis, horizon, k_aux, |q| {
+    stenciled_operator(rows, positions, families, basis, horizon, rule, |q| {
         let weights: Vec<Vec<nalgebra::RowDVector<f64>>> = scaled
             .iter()
             .map(|row| row.iter().map(|lk| lk * q).collect())
@@ -553,10 +705,11 @@ pub fn diffusion_stencil_operator<const D: usize>(
     basis: &Basis,
     l: &[f64],
     horizon: f64,
-    k_aux: usize,
+    rule: impl Into<Collocation>,
 ) -> Result<VectorOperator<1>, FitError> {
+    let rule: Collocation = rule.into();
     let l_scaled = scale_to_fit(basis, l, horizon).transpose();
-    stenciled_operator(rows, positions, families, basis, horizon, k_aux, |q| {
+    stenciled_operator(rows, positions, families, basis, horizon, rule, |q| {
         (&l_scaled * q).iter().map(|&w| [[w]]).collect()
     })
 }
@@ -569,12 +722,12 @@ fn stenciled_operator<const D: usize, const E: usize>(
     families: &Families,
     basis: &Basis,
     horizon: f64,
-    k_aux: usize,
+    rule: Collocation,
     blocks: impl Fn(&DMatrix<f64>) -> Vec<[[f64; E]; E]> + Sync,
 ) -> Result<VectorOperator<E>, FitError> {
     use rayon::prelude::*;
     use std::collections::HashMap;
-    let sets = collocation_sets(rows, positions, families, horizon, k_aux);
+    let sets = collocation_sets(rows, positions, families, horizon, rule);
     let key = |i: u32, set: &[u32]| -> Vec<i64> {
         set.iter()
             .flat_map(|&j| {
@@ -601,7 +754,14 @@ fn stenciled_operator<const D: usize, const E: usize>(
     let stencils: Vec<Vec<[[f64; E]; E]>> = unique
         .par_iter()
         .map(|&r| {
-            let q = fit_matrix(rows[r] as usize, &sets[r], positions, basis, horizon)?;
+            let q = fit_matrix(
+                rows[r] as usize,
+                &sets[r],
+                positions,
+                basis,
+                horizon,
+                rule.weight_exponent,
+            )?;
             Ok(blocks(&q))
         })
         .collect::<Result<_, FitError>>()?;
@@ -775,8 +935,13 @@ mod tests {
             let horizon = m as f64;
             let families = Families::build(&lattice.positions, horizon * (1.0 + 1e-9));
             let rows: Vec<u32> = (0..lattice.len() as u32).collect();
-            let (sets, translated) =
-                collocation_sets_counted(&rows, &lattice.positions, &families, horizon, k_aux);
+            let (sets, translated) = collocation_sets_counted(
+                &rows,
+                &lattice.positions,
+                &families,
+                horizon,
+                k_aux.into(),
+            );
             eprintln!(
                 "{D}D, perturbation {perturbation}: {translated} of {} rows translated",
                 rows.len()
@@ -897,12 +1062,21 @@ mod tests {
     /// For every dimension and order, a random polynomial of degree ≤ k pushed through the
     /// fit and L equals the analytic PD integral L·a (a = its Taylor coefficients at x_i), on
     /// a perturbed lattice; the weights of every node sum to zero.
-    fn reproduction<const D: usize>(order: usize, m: usize, k_aux: usize) {
+    fn reproduction<const D: usize>(order: usize, m: usize, rule: impl Into<Collocation>) {
+        let rule: Collocation = rule.into();
         let (lattice, families, c) = setup::<D>(m, 0.2);
         let horizon = m as f64;
         let basis = Basis::new(D, order);
-        let set = collocation_set(c, &lattice.positions, &families, horizon, k_aux);
-        let q = fit_matrix(c, &set, &lattice.positions, &basis, horizon).unwrap();
+        let set = collocation_set(c, &lattice.positions, &families, horizon, rule);
+        let q = fit_matrix(
+            c,
+            &set,
+            &lattice.positions,
+            &basis,
+            horizon,
+            rule.weight_exponent,
+        )
+        .unwrap();
         let l = diffusion_l(&basis, 1.0, 1.0, horizon, Influence::Constant);
         let weights = scale_to_fit(&basis, &l, horizon).transpose() * &q;
         let sum: f64 = weights.iter().sum();
@@ -949,6 +1123,42 @@ mod tests {
         reproduction::<3>(2, 6, 3);
     }
 
+    /// The wide stencils of issue 14 (orbits of lattice offsets, weight exponent 6 and 8)
+    /// reproduce quadratics like the papers' grid, on a perturbed lattice (setup: ±0.2 Δx).
+    #[test]
+    fn orbit_stencils_reproduce_quadratics() {
+        for (m, orbits, a) in [
+            (4, &[[1u8, 1], [2, 1], [3, 0]][..], 6.0),
+            (8, &[[3, 3], [4, 1], [4, 2]][..], 6.0),
+            (8, &[[4, 1], [4, 2]][..], 8.0),
+        ] {
+            reproduction::<2>(2, m, Collocation::orbits(1.0, orbits, a).unwrap());
+        }
+    }
+
+    /// Orbit sets hold the node and every orbit's 4 or 8 points; the papers' grid rule is
+    /// unchanged by the generalisation (29 nodes at δ/3).
+    #[test]
+    fn orbit_stencil_counts() {
+        let (lattice, families, c) = setup::<2>(4, 0.0);
+        let rule = Collocation::orbits(1.0, &[[1, 1], [2, 1], [3, 0]], 6.0).unwrap();
+        let set = collocation_set(c, &lattice.positions, &families, 4.0, rule);
+        assert_eq!(set.len(), 1 + 4 + 8 + 4);
+        let offsets: Vec<[i64; 2]> = set
+            .iter()
+            .map(|&j| {
+                std::array::from_fn(|a| {
+                    (lattice.positions[j as usize][a] - lattice.positions[c][a]).round() as i64
+                })
+            })
+            .collect();
+        for o in [[0, 0], [1, 1], [-1, 1], [2, 1], [1, -2], [3, 0], [0, -3]] {
+            assert!(offsets.contains(&o), "{o:?} missing from {offsets:?}");
+        }
+        assert!(Collocation::orbits(1.0, &[[0, 0]], 6.0).is_err());
+        assert!(Collocation::orbits(1.0, &[[1, 0]], 70.0).is_err());
+    }
+
     /// Bond-based WLS on quadratic displacements equals Navier's operator with the Poisson
     /// ratio of bond-based PD: ν = 1/3 with the plane-stress c, ν = 1/4 with the plane-strain
     /// c (2D), and in 3D u = (x², 0, 0) gives ρü_x = λ = π c δ⁴/5 (3.58).
@@ -960,7 +1170,15 @@ mod tests {
         let horizon = 6.0;
         let basis = Basis::new(2, 2);
         let set = collocation_set(c, &lattice.positions, &families, horizon, 3);
-        let q = fit_matrix(c, &set, &lattice.positions, &basis, horizon).unwrap();
+        let q = fit_matrix(
+            c,
+            &set,
+            &lattice.positions,
+            &basis,
+            horizon,
+            PAPERS_WEIGHT_EXPONENT,
+        )
+        .unwrap();
         let xc = lattice.positions[c];
         // u = (a x² + b xy + e y², f x² + g xy + h y²) about x_c.
         let (a, b, e, f, g, h) = (0.3, -0.2, 0.5, 0.1, 0.4, -0.6);
@@ -1010,7 +1228,15 @@ mod tests {
         let (lattice, families, c) = setup::<3>(6, 0.2);
         let basis = Basis::new(3, 2);
         let set = collocation_set(c, &lattice.positions, &families, horizon, 3);
-        let q = fit_matrix(c, &set, &lattice.positions, &basis, horizon).unwrap();
+        let q = fit_matrix(
+            c,
+            &set,
+            &lattice.positions,
+            &basis,
+            horizon,
+            PAPERS_WEIGHT_EXPONENT,
+        )
+        .unwrap();
         let xc = lattice.positions[c];
         let cm = 1.0;
         let l = bond_l(&basis, cm, horizon, Influence::Constant);
@@ -1080,7 +1306,15 @@ mod tests {
         let (lattice, families, c) = setup::<2>(6, 0.0);
         let basis = Basis::new(2, 4);
         let set = collocation_set(c, &lattice.positions, &families, 6.0, 1);
-        let err = fit_matrix(c, &set, &lattice.positions, &basis, 6.0).unwrap_err();
+        let err = fit_matrix(
+            c,
+            &set,
+            &lattice.positions,
+            &basis,
+            6.0,
+            PAPERS_WEIGHT_EXPONENT,
+        )
+        .unwrap_err();
         assert_eq!(err.node, c);
         let text = err.to_string();
         assert!(

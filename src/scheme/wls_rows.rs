@@ -8,6 +8,7 @@ use super::runs::RowRuns;
 use super::wls::{self, Basis, FitError};
 use crate::discretization::Families;
 use crate::model::pmb::PmbLaw;
+use crate::scheme::wls::Collocation;
 use rayon::prelude::*;
 
 pub struct WlsRows<const D: usize> {
@@ -24,18 +25,18 @@ pub struct WlsRows<const D: usize> {
 
 impl<const D: usize> WlsRows<D> {
     /// The rows of `rows` (node indices, ascending) among `reference.len()` nodes, collocated
-    /// over each node's family with the auxiliary grid δ/k_aux.
+    /// over each node's family with the collocation rule.
     pub fn elasticity(
         rows: &[u32],
         reference: &[[f64; D]],
         families: &Families,
         law: &PmbLaw,
-        k_aux: usize,
+        rule: impl Into<Collocation>,
     ) -> Result<Self, FitError> {
         let basis = Basis::new(D, 2);
         let l = wls::bond_l(&basis, law.micromodulus, law.horizon, law.influence);
         let op =
-            wls::elasticity_operator(rows, reference, families, &basis, &l, law.horizon, k_aux)?;
+            wls::elasticity_operator(rows, reference, families, &basis, &l, law.horizon, rule)?;
         let mut row_of = vec![u32::MAX; reference.len()];
         for (r, &i) in rows.iter().enumerate() {
             row_of[i as usize] = r as u32;

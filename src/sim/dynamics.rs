@@ -4,6 +4,7 @@
 //! named, timed stages and emits plain-data `Frame`s; it knows nothing of viewers or user
 //! interfaces.
 
+use crate::scheme::wls::Collocation;
 use rayon::prelude::*;
 
 use super::unbounded::{self, BondLayer};
@@ -276,7 +277,7 @@ impl<const D: usize> DynamicSimulation<D> {
                     reference,
                     &discretization.families,
                     &law,
-                    scene.scheme.collocation_factor,
+                    scene.scheme.collocation,
                 )
                 .map_err(|e| scene.error("hybrid.collocation_factor", e.to_string()))?;
                 Some(h)
@@ -292,7 +293,7 @@ impl<const D: usize> DynamicSimulation<D> {
                     discretization.nodes.reference(),
                     &discretization.families,
                     &law,
-                    collocation_factor,
+                    Collocation::grid(collocation_factor),
                 )
                 .map_err(|e| scene.error("multigrid.collocation_factor", e.to_string()))?;
                 Some(w)

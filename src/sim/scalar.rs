@@ -141,7 +141,7 @@ pub fn assemble<const D: usize>(
                 &basis,
                 &l,
                 scene.horizon,
-                scene.scheme.collocation_factor,
+                scene.scheme.collocation,
             )
             .map_err(|e| e.to_string())
         }
@@ -301,7 +301,7 @@ impl<const D: usize> ScalarSimulation<D> {
                     positions,
                     &discretization.families,
                     &kernel,
-                    scene.scheme.collocation_factor,
+                    scene.scheme.collocation,
                 )
                 .map_err(|e| scene.error("hybrid.collocation_factor", e.to_string()))?;
                 Some(h)

@@ -160,7 +160,15 @@ fn lps_3d_operator_gives_the_navier_operator() {
         .iter()
         .map(|&j| {
             let cs = wls::collocation_set(j as usize, &lat.positions, &families, m, k_aux);
-            let q = wls::fit_matrix(j as usize, &cs, &lat.positions, &basis, m).unwrap();
+            let q = wls::fit_matrix(
+                j as usize,
+                &cs,
+                &lat.positions,
+                &basis,
+                m,
+                wls::PAPERS_WEIGHT_EXPONENT,
+            )
+            .unwrap();
             (0..3)
                 .map(|l| {
                     let values =
@@ -190,7 +198,15 @@ fn lps_3d_operator_gives_the_navier_operator() {
     assert_eq!(op.columns.len(), 123, "123 collocation nodes (δ/3) in 3D");
     let mut j_force = [[0.0; 3]];
     op.apply_rows(&u, &mut j_force);
-    let q = wls::fit_matrix(centre as usize, &set, &lat.positions, &basis, m).unwrap();
+    let q = wls::fit_matrix(
+        centre as usize,
+        &set,
+        &lat.positions,
+        &basis,
+        m,
+        wls::PAPERS_WEIGHT_EXPONENT,
+    )
+    .unwrap();
     let l_i = wls::lps_dilatation_force_l(&basis, bulk, shear, m, influence);
     let theta = DVector::from_vec(theta);
     let force: Vec<f64> = (0..3)
@@ -205,5 +221,110 @@ fn lps_3d_operator_gives_the_navier_operator() {
             (force[k] - expected[k]).abs() < 1e-8,
             "{force:?} vs {expected:?}"
         );
+    }
+}
+
+/// Issue 14: a collocation stencil whose offsets are all multiples of 2Δx (the papers' rule
+/// "auxiliary points on lattice nodes" at δ/2 and m = 4) sees only its own sub-lattice, so a
+/// displacement alternating node by node, u = e cos(k·x) with k = (π/Δx, 0), gives no force at
+/// all: a zero-energy mode that the hybrid's Ω_w then carries unchecked (measured: spurious far-
+/// edge cracks on Kalthoff–Winkler). The orbit stencils couple every sub-lattice: at every
+/// lattice wave number with |k| ≥ π/(2Δx) sampled here their restoring force stays above a
+/// fifth of the bond-based PD operator's (the independent reference: Σ_j c ξ⊗ξ/|ξ|³
+/// (1 − cos k·ξ) V_j over the family, evaluated directly).
+#[test]
+fn wide_stencils_keep_every_sub_lattice_coupled() {
+    let horizon_cells = |m: usize| m as f64;
+    let cases: [(usize, wls::Collocation, f64); 4] = [
+        (4, wls::Collocation::grid(2), 0.0),
+        (
+            4,
+            wls::Collocation::orbits(1.0, &[[1, 1], [2, 1], [3, 0]], 6.0).unwrap(),
+            0.2,
+        ),
+        (
+            8,
+            wls::Collocation::orbits(1.0, &[[3, 3], [4, 1], [4, 2]], 6.0).unwrap(),
+            0.2,
+        ),
+        (8, wls::Collocation::grid(2), 0.0),
+    ];
+    for (m, rule, floor) in cases {
+        let n = 4 * m + 2;
+        let solid = Solid::Box {
+            min: vec![0.0; 2],
+            max: vec![n as f64; 2],
+        };
+        let lat = Lattice::<2>::build(&solid, 1.0, [0.0, 0.0], 1);
+        let horizon = horizon_cells(m);
+        let families = Families::build(&lat.positions, horizon * (1.0 + 1e-9));
+        let centre = (0..lat.len())
+            .min_by(|&a, &b| {
+                let d = |i: usize| {
+                    (lat.positions[i][0] - n as f64 / 2.0).powi(2)
+                        + (lat.positions[i][1] - n as f64 / 2.0).powi(2)
+                };
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap();
+        let basis = Basis::new(2, 2);
+        let cm = micromodulus(1.0, horizon, 2, Plane::Strain, Influence::Constant);
+        let l = wls::bond_l(&basis, cm, horizon, Influence::Constant);
+        let op = wls::elasticity_operator(
+            &[centre as u32],
+            &lat.positions,
+            &families,
+            &basis,
+            &l,
+            horizon,
+            rule,
+        )
+        .unwrap();
+        let xc = lat.positions[centre];
+        let pi = std::f64::consts::PI;
+        let mut least = f64::INFINITY;
+        for k in [
+            [pi, 0.0],
+            [0.0, pi],
+            [pi, pi],
+            [pi / 2.0, 0.0],
+            [pi / 2.0, pi / 2.0],
+            [pi, pi / 2.0],
+            [3.0 * pi / 4.0, pi / 4.0],
+        ] {
+            for e in [[1.0, 0.0], [0.0, 1.0]] {
+                let phase = |x: &[f64; 2]| (k[0] * (x[0] - xc[0]) + k[1] * (x[1] - xc[1])).cos();
+                let f = op.apply_row_with(0, |j| {
+                    let c = phase(&lat.positions[j]);
+                    [e[0] * c, e[1] * c]
+                });
+                let wls_restoring = -(f[0] * e[0] + f[1] * e[1]);
+                // The PD operator's restoring force for the same mode at the same node.
+                let pd: f64 = families
+                    .range(centre)
+                    .map(|b| {
+                        let j = families.neighbors[b] as usize;
+                        let xi = [lat.positions[j][0] - xc[0], lat.positions[j][1] - xc[1]];
+                        let r = (xi[0] * xi[0] + xi[1] * xi[1]).sqrt();
+                        let proj = xi[0] * e[0] + xi[1] * e[1];
+                        cm * proj * proj / r.powi(3) * (1.0 - phase(&lat.positions[j]))
+                    })
+                    .sum();
+                assert!(pd > 0.0);
+                least = least.min(wls_restoring / pd);
+            }
+        }
+        if floor == 0.0 {
+            assert!(
+                least.abs() < 1e-9,
+                "m = {m}, {rule:?}: the δ/2 grid should decouple sub-lattices (least ratio {least:e})"
+            );
+        } else {
+            assert!(
+                least >= floor,
+                "m = {m}, {rule:?}: least restoring ratio {least:.3} below {floor}"
+            );
+        }
+        eprintln!("m = {m}, {rule:?}: least WLS/PD restoring ratio {least:.3}");
     }
 }
