@@ -6,6 +6,7 @@ pub use state_based::{
     OpeningSpec, SplitRule, StateBasedSpec, check_split_damage, check_split_strain,
 };
 pub mod builtin;
+pub mod collocation;
 pub mod error;
 pub mod geometry;
 pub mod reference;
@@ -313,7 +314,7 @@ pub struct SchemeSpec {
     pub kind: SchemeKind,
     /// WLS collocation rule (auxiliary grid δ/k_aux, or orbits); for the standard scheme the
     /// unused grid factor 0.
-    pub collocation: crate::scheme::wls::Collocation,
+    pub collocation: collocation::Collocation,
 }
 
 #[derive(Debug, Clone)]

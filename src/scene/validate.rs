@@ -1,5 +1,6 @@
 //! Preset → Scene: range checks with the field's name, units to SI, derived material constants.
 
+use super::collocation::Collocation;
 use super::error::{ErrorContext, SceneError};
 use super::geometry::{Point, si};
 use super::reference;
@@ -9,7 +10,6 @@ use super::schema::{
 use super::units::{Measure, Relative};
 use super::*;
 use crate::model::pmb::{Failure, PmbConstants, Stiffness};
-use crate::scheme::wls::Collocation;
 
 /// Directed bonds a scene may have (≈ 13 bytes each: 16 GB).
 const MAX_BONDS: f64 = 1.2e9;
@@ -769,20 +769,15 @@ fn hybrid_collocation(
     let h = &p.hybrid;
     let exponent = h
         .fit_weight
-        .unwrap_or(crate::scheme::wls::PAPERS_WEIGHT_EXPONENT);
+        .unwrap_or(super::collocation::PAPERS_WEIGHT_EXPONENT);
     let Some(orbits) = &h.collocation_orbits else {
         let k = match h.collocation_factor {
             Some(k) => collocation_factor(ctx, "hybrid.collocation_factor", k)?,
             None => 3,
         };
-        let mut rule = Collocation::grid(k);
-        if h.fit_weight.is_some() {
-            // The same range check as the orbit rule's.
-            Collocation::orbits(spacing, &[[1, 0]], exponent)
-                .map_err(|m| ctx.error("hybrid.fit_weight", m))?;
-            rule.weight_exponent = exponent;
-        }
-        return Ok(rule);
+        return Collocation::grid(k)
+            .with_weight(exponent)
+            .map_err(|m| ctx.error("hybrid.fit_weight", m));
     };
     if h.collocation_factor.is_some() {
         return Err(ctx.error(

@@ -8,6 +8,8 @@
 
 use nalgebra::{DMatrix, DVector};
 
+pub use crate::scene::collocation::{Collocation, MAX_ORBITS, PAPERS_WEIGHT_EXPONENT, Targets};
+
 use crate::discretization::family::Families;
 use crate::model::pmb::Influence;
 use crate::scheme::{Row, ScalarOperator, VectorOperator};
@@ -71,154 +73,11 @@ pub fn weight(d: f64, r_max: f64) -> f64 {
     weight_with(PAPERS_WEIGHT_EXPONENT, d, r_max)
 }
 
-/// The exponent a = 16 of the papers' weight (3.26).
-pub const PAPERS_WEIGHT_EXPONENT: f64 = 16.0;
-
 /// The weight (3.26) with exponent a in place of 16: (e^{−a d²/r̄²} − e^{−4a})/(1 − e^{−4a}),
 /// so that w̄(0) = 1 and w̄(2 r̄) = 0 as in the papers' form.
 pub fn weight_with(a: f64, d: f64, r_max: f64) -> f64 {
     let floor = (-4.0 * a).exp();
     ((-a * d * d / (r_max * r_max)).exp() - floor) / (1.0 - floor)
-}
-
-/// Largest number of symmetric orbits in an [`Collocation`] template.
-pub const MAX_ORBITS: usize = 8;
-
-/// How a WLS node's collocation targets are laid out (seed-004 §2.2, Remark 2).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Targets {
-    /// The papers' auxiliary grid of spacing δ/k_aux, its points within the ball.
-    Grid(usize),
-    /// 2D only: whole orbits of lattice offsets (a, b) under the square's symmetries (±a, ±b),
-    /// (±b, ±a), in units of `spacing` (the lattice spacing Δx). A choice outside the papers
-    /// (issue 14): a wide stencil whose offsets still generate the lattice, so that its
-    /// stable step approaches the standard scheme's without decoupled sub-lattices.
-    Orbits {
-        spacing: f64,
-        orbits: [[u8; 2]; MAX_ORBITS],
-        count: usize,
-    },
-}
-
-/// A collocation rule: where the targets lie, and the fit's weight exponent.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Collocation {
-    pub targets: Targets,
-    /// Exponent a of the weight exp(−a d²/r̄²) (the papers: 16).
-    pub weight_exponent: f64,
-}
-
-impl From<usize> for Collocation {
-    /// The papers' auxiliary grid δ/k_aux.
-    fn from(k_aux: usize) -> Self {
-        Collocation::grid(k_aux)
-    }
-}
-
-impl Collocation {
-    /// The papers' rule: auxiliary grid δ/k_aux, weight (3.26).
-    pub fn grid(k_aux: usize) -> Self {
-        Collocation {
-            targets: Targets::Grid(k_aux),
-            weight_exponent: PAPERS_WEIGHT_EXPONENT,
-        }
-    }
-
-    /// The auxiliary grid's factor, if the rule is the papers' grid.
-    pub fn grid_factor(&self) -> Option<usize> {
-        match self.targets {
-            Targets::Grid(k) => Some(k),
-            Targets::Orbits { .. } => None,
-        }
-    }
-
-    /// Orbits of lattice offsets (each [a, b] with a, b ≥ 0, not both 0) with weight exponent a.
-    pub fn orbits(spacing: f64, orbits: &[[u8; 2]], weight_exponent: f64) -> Result<Self, String> {
-        if orbits.is_empty() || orbits.len() > MAX_ORBITS {
-            return Err(format!(
-                "needs 1 to {MAX_ORBITS} orbits [a, b], got {}",
-                orbits.len()
-            ));
-        }
-        if let Some(o) = orbits.iter().find(|o| o[0] == 0 && o[1] == 0) {
-            return Err(format!(
-                "orbit {o:?} is the node itself; give offsets (a, b) ≠ (0, 0)"
-            ));
-        }
-        if !(weight_exponent.is_finite() && (0.0..=64.0).contains(&weight_exponent)) {
-            return Err(format!(
-                "the weight exponent must be in [0, 64] (the papers' is 16), got {weight_exponent}"
-            ));
-        }
-        let mut fixed = [[0u8; 2]; MAX_ORBITS];
-        fixed[..orbits.len()].copy_from_slice(orbits);
-        Ok(Collocation {
-            targets: Targets::Orbits {
-                spacing,
-                orbits: fixed,
-                count: orbits.len(),
-            },
-            weight_exponent,
-        })
-    }
-
-    /// The target offsets from the node (the node itself excluded), in a fixed order.
-    fn target_offsets<const D: usize>(&self, horizon: f64) -> Vec<[f64; D]> {
-        match self.targets {
-            Targets::Grid(k_aux) => {
-                let h = horizon / k_aux as f64;
-                let k = k_aux as i64;
-                let mut out = Vec::new();
-                let mut index = [-k; D];
-                'grid: loop {
-                    let n2: i64 = index.iter().map(|v| v * v).sum();
-                    if n2 > 0 && n2 <= k * k {
-                        out.push(std::array::from_fn(|a| index[a] as f64 * h));
-                    }
-                    for v in index.iter_mut() {
-                        *v += 1;
-                        if *v <= k {
-                            continue 'grid;
-                        }
-                        *v = -k;
-                    }
-                    break;
-                }
-                out
-            }
-            Targets::Orbits {
-                spacing,
-                orbits,
-                count,
-            } => {
-                let mut out: Vec<[f64; D]> = Vec::new();
-                for &[a, b] in &orbits[..count] {
-                    let (a, b) = (a as f64, b as f64);
-                    for (x, y) in [(a, b), (b, a)] {
-                        for (sx, sy) in [(1.0, 1.0), (-1.0, 1.0), (1.0, -1.0), (-1.0, -1.0)] {
-                            let mut p = [0.0; D];
-                            p[0] = sx * x * spacing;
-                            if D > 1 {
-                                p[1] = sy * y * spacing;
-                            }
-                            if !out.contains(&p) {
-                                out.push(p);
-                            }
-                        }
-                    }
-                }
-                out
-            }
-        }
-    }
-
-    /// The spacing that sets the search cells and the tie tolerance.
-    fn cell(&self, horizon: f64) -> f64 {
-        match self.targets {
-            Targets::Grid(k_aux) => horizon / k_aux as f64,
-            Targets::Orbits { spacing, .. } => spacing,
-        }
-    }
 }
 
 /// Radial moment R(s) = ∫_0^δ ω(r) r^s dr (seed-thesis-ch2-3 §3.5), s > −1.
@@ -846,6 +705,17 @@ mod tests {
             .unwrap()
     }
 
+    /// The fit with the papers' weight (3.26).
+    fn papers_fit<const D: usize>(
+        c: usize,
+        set: &[u32],
+        positions: &[[f64; D]],
+        basis: &Basis,
+        horizon: f64,
+    ) -> DMatrix<f64> {
+        fit_matrix(c, set, positions, basis, horizon, PAPERS_WEIGHT_EXPONENT).unwrap()
+    }
+
     fn setup<const D: usize>(m: usize, perturbation: f64) -> (Lattice<D>, Families, usize) {
         let n = 2 * m + 4;
         let solid = Solid::Box {
@@ -1170,15 +1040,7 @@ mod tests {
         let horizon = 6.0;
         let basis = Basis::new(2, 2);
         let set = collocation_set(c, &lattice.positions, &families, horizon, 3);
-        let q = fit_matrix(
-            c,
-            &set,
-            &lattice.positions,
-            &basis,
-            horizon,
-            PAPERS_WEIGHT_EXPONENT,
-        )
-        .unwrap();
+        let q = papers_fit(c, &set, &lattice.positions, &basis, horizon);
         let xc = lattice.positions[c];
         // u = (a x² + b xy + e y², f x² + g xy + h y²) about x_c.
         let (a, b, e, f, g, h) = (0.3, -0.2, 0.5, 0.1, 0.4, -0.6);
@@ -1228,15 +1090,7 @@ mod tests {
         let (lattice, families, c) = setup::<3>(6, 0.2);
         let basis = Basis::new(3, 2);
         let set = collocation_set(c, &lattice.positions, &families, horizon, 3);
-        let q = fit_matrix(
-            c,
-            &set,
-            &lattice.positions,
-            &basis,
-            horizon,
-            PAPERS_WEIGHT_EXPONENT,
-        )
-        .unwrap();
+        let q = papers_fit(c, &set, &lattice.positions, &basis, horizon);
         let xc = lattice.positions[c];
         let cm = 1.0;
         let l = bond_l(&basis, cm, horizon, Influence::Constant);

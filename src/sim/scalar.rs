@@ -303,7 +303,7 @@ impl<const D: usize> ScalarSimulation<D> {
                     &kernel,
                     scene.scheme.collocation,
                 )
-                .map_err(|e| scene.error("hybrid.collocation_factor", e.to_string()))?;
+                .map_err(|e| scene.error(scene.scheme.collocation.field(), e.to_string()))?;
                 Some(h)
             }
             _ => None,
