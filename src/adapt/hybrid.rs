@@ -50,6 +50,12 @@ impl std::fmt::Display for SwitchEvent {
     }
 }
 
+/// An epoch (every slack refreshed) follows a filtered check that flagged more than
+/// 1/EPOCH_SHARE of the checked nodes. Measured on Kalthoff–Winkler medium-fast at 0.7 of its
+/// stable step (docs/results.md): 2 → 4 → 8 → 16 gave 2.0–2.3, 1.55–1.61, 1.46–1.63,
+/// 1.52–1.56 s of switching; 8 visits the fewest bonds.
+const EPOCH_SHARE: usize = 8;
+
 pub struct Hybrid<const D: usize> {
     pub spec: HybridSpec,
     /// Ω_s (standard) or Ω_w (WLS), per node.
@@ -69,6 +75,8 @@ pub struct Hybrid<const D: usize> {
     check_bonds: u64,
     /// Skips nodes whose bonds provably cannot be critical (policies `all` and `near`).
     motion: Option<MotionBound<D>>,
+    /// The shortest bond (m), which turns a stretch slack into a length slack.
+    shortest_bond: f64,
     /// The last filtered check flagged so many nodes that the next check starts an epoch.
     epoch_due: bool,
     /// Checked nodes and their family members (the motion bound's tracked nodes), and
@@ -167,6 +175,11 @@ impl<const D: usize> Hybrid<D> {
                 MotionBound::new(reference, reach)
             }),
             epoch_due: false,
+            shortest_bond: families
+                .lengths
+                .iter()
+                .copied()
+                .fold(f64::INFINITY, f64::min),
             tracked: vec![false; mask_len],
             tracked_stale: true,
             standard_nodes,
@@ -265,7 +278,7 @@ impl<const D: usize> Hybrid<D> {
 
     /// The check under the `all` and `near` policies, filtered by the motion bound: nodes whose
     /// bound stays below their slack are skipped; the rest are checked exactly. After a check
-    /// that flagged more than a quarter of the nodes (or when χ changed), an epoch pass checks
+    /// that flagged more than 1/EPOCH_SHARE of the nodes (or when χ changed), an epoch pass checks
     /// every node and records fresh slacks. Returns the nodes with a critical bond.
     fn critical_by_motion(
         &mut self,
@@ -289,6 +302,7 @@ impl<const D: usize> Hybrid<D> {
             // the exact test on the nodes whose slack is (about) exhausted, so the verdict is
             // the plain check's.
             let sqrt_f = factor.sqrt();
+            let shortest = this.shortest_bond;
             let tolerance = 1e-9 * families.lengths.first().copied().unwrap_or(0.0);
             motion
                 .slack
@@ -297,7 +311,17 @@ impl<const D: usize> Hybrid<D> {
                 .with_min_len(1024)
                 .for_each(|(i, s)| {
                     *s = if this.in_check[i] && this.mask[i] == SchemeClass::Wls {
-                        this.node_least(i, &bonds, |r2, l2| sqrt_f * l2.sqrt() - r2.sqrt())
+                        // √f·l − r = l (√f − r/l) ≥ l_min (√f − max r/l) while that is ≥ 0:
+                        // one division per bond and one square root per node.
+                        let least = this.node_least(i, &bonds, |r2, l2| -(r2 / l2));
+                        let stretch = sqrt_f - (-least).sqrt();
+                        if least == f64::INFINITY {
+                            f64::INFINITY
+                        } else if stretch >= 0.0 {
+                            stretch * shortest
+                        } else {
+                            f64::NEG_INFINITY
+                        }
                     } else {
                         f64::INFINITY
                     };
@@ -328,25 +352,25 @@ impl<const D: usize> Hybrid<D> {
             self.epoch_due = false;
             critical
         } else {
-            // One parallel pass over the cells counts the flagged nodes and the bonds visited
-            // and checks them exactly; the critical nodes are listed (allocated) only when there
-            // are some. Too many flagged nodes: the next check starts an epoch (this one is
-            // exact either way).
+            // One parallel pass over the cells counts the flagged nodes and the bonds visited,
+            // checks them exactly and lists the critical ones (allocating only for those).
+            // Too many flagged nodes: the next check starts an epoch (this one is exact either
+            // way).
             let in_check_wls = |k: usize| this.in_check[k] && this.mask[k] == SchemeClass::Wls;
-            let (flagged, (counted, any)) = motion.fold_flagged(
+            let (flagged, (counted, critical)) = motion.fold_flagged(
                 in_check_wls,
-                |i| (this.bond_count(i, families), node_critical(&(i as u32))),
-                (0, false),
-                |a, b| (a.0 + b.0, a.1 | b.1),
+                |i| {
+                    let critical = node_critical(&(i as u32));
+                    let listed = if critical { vec![i as u32] } else { Vec::new() };
+                    (this.bond_count(i, families), listed)
+                },
+                || (0u64, Vec::new()),
+                |(bonds, mut list): (u64, Vec<u32>), (more, mut found): (u64, Vec<u32>)| {
+                    list.append(&mut found);
+                    (bonds + more, list)
+                },
             );
-            let critical = if any {
-                let mut flagged = Vec::new();
-                motion.flag(in_check_wls, &mut flagged);
-                flagged.into_par_iter().filter(node_critical).collect()
-            } else {
-                Vec::new()
-            };
-            self.epoch_due = flagged * 4 > self.check_nodes.len();
+            self.epoch_due = flagged * EPOCH_SHARE > self.check_nodes.len();
             self.checked_bonds += counted;
             self.filtered_checks += 1;
             critical

@@ -151,30 +151,18 @@ impl<const D: usize> MotionBound<D> {
         self.least_slack[self.cell_of[i] as usize] = f64::NEG_INFINITY;
     }
 
-    /// Appends to `out` the nodes k with `wanted(k)` that may have a critical bond, visiting
-    /// only the cells whose bound reaches their least slack (no allocation beyond `out`).
-    pub fn flag(&self, wanted: impl Fn(usize) -> bool, out: &mut Vec<u32>) {
-        for (c, (&bound, &least)) in self.bound.iter().zip(&self.least_slack).enumerate() {
-            if self.reaches(bound, least) {
-                out.extend(
-                    self.cell_nodes[self.cell_offsets[c]..self.cell_offsets[c + 1]]
-                        .iter()
-                        .filter(|&&k| wanted(k as usize) && self.may_reach(k as usize)),
-                );
-            }
-        }
-    }
-
-    /// Map-reduce over the nodes [`Self::flag`] would list, in parallel over cells and without
-    /// listing them: their number and the reduction of `visit` over them (`zero` its identity).
-    pub fn fold_flagged<T: Send + Sync + Copy>(
+    /// Map-reduce over the nodes k with `wanted(k)` that may have a critical bond, in parallel
+    /// over the cells whose bound reaches their least slack (the others are skipped without
+    /// visiting their nodes): their number and the reduction of `visit` over them (`zero`
+    /// makes the identity).
+    pub fn fold_flagged<T: Send>(
         &self,
         wanted: impl Fn(usize) -> bool + Sync,
         visit: impl Fn(usize) -> T + Sync,
-        zero: T,
+        zero: impl Fn() -> T + Sync + Send,
         join: impl Fn(T, T) -> T + Sync + Send,
     ) -> (usize, T) {
-        let join = &join;
+        let (join, zero) = (&join, &zero);
         self.bound
             .par_iter()
             .zip(self.least_slack.par_iter())
@@ -186,9 +174,9 @@ impl<const D: usize> MotionBound<D> {
                     .iter()
                     .map(|&k| k as usize)
                     .filter(|&k| wanted(k) && self.may_reach(k))
-                    .fold((0, zero), |(n, acc), k| (n + 1, join(acc, visit(k))))
+                    .fold((0, zero()), |(n, acc), k| (n + 1, join(acc, visit(k))))
             })
-            .reduce(|| (0, zero), |a, b| (a.0 + b.0, join(a.1, b.1)))
+            .reduce(|| (0, zero()), |a, b| (a.0 + b.0, join(a.1, b.1)))
     }
 
     /// Recomputes the per-cell bounds B_c for the motion since the epoch.

@@ -108,6 +108,18 @@ pub fn print_summary(s: &RunSummary) {
     } else {
         println!("broken bonds: {}", s.broken_bonds);
     }
+    if let (Some(bonds), Some(full), Some(filtered)) = (
+        last("hybrid/checked_bonds"),
+        last("hybrid/full_checks"),
+        last("hybrid/filtered_checks"),
+    ) {
+        println!(
+            "switching check: {full} full (epoch) checks, {filtered} filtered, {bonds:.4e} bonds \
+             checked exactly ({:.0} per check), Ω_s {:.2} %",
+            bonds / (full + filtered).max(1.0),
+            100.0 * last("hybrid/omega_s_fraction").unwrap_or(0.0)
+        );
+    }
     if let (Some(coarse), Some(fine), Some(fictitious)) = (
         last("grid/coarse_active"),
         last("grid/fine_active"),
