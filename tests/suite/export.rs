@@ -111,7 +111,30 @@ fn assert_series_matches(series: &[VtuFrame], rec: &Recording, main: &str, exact
     }
 }
 
+/// Whether the independent reader is there. `.ci/run` installs it, so under CI (`CI` set) its
+/// absence is a failure; on a machine with only the Rust toolchain the export tests say they
+/// were skipped and how to run them, so the README's test command still passes there.
+fn meshio_available() -> bool {
+    let found = Command::new("python3")
+        .args(["-c", "import meshio"])
+        .status()
+        .is_ok_and(|s| s.success());
+    assert!(
+        found || std::env::var_os("CI").is_none(),
+        "CI: python3 with meshio is required (.ci/run installs it)"
+    );
+    if !found {
+        eprintln!(
+            "skipped: the VTU export check needs python3 with meshio (pip install 'meshio==5.3.*')"
+        );
+    }
+    found
+}
+
 fn record_with_vtu(preset: &str, variant: &str, every: &str, main: &str) {
+    if !meshio_available() {
+        return;
+    }
     let rrd = temp(&format!("{variant}.rrd"));
     let live = temp(&format!("{variant}-live"));
     let exported = temp(&format!("{variant}-exported"));

@@ -157,9 +157,9 @@ fn run_checked(scene: &Scene) -> (DynamicSimulation<2>, Vec<f64>) {
 }
 
 /// Kalthoff–Winkler `medium`, hybrid adaptive against all standard on the same grid and Δt:
-/// crack angles within 3°, damage fields agree (fewer than 2 % of nodes differ by > 0.3), Ω_s
-/// grows monotonically from its initial band and stays below 40 %; no bond ever breaks in Ω_w,
-/// also with χ raised to 0.99.
+/// crack angles within 2° and in 60–72°, damage fields agree (fewer than 2 % of nodes differ
+/// by > 0.3), Ω_s grows monotonically from within 1.5 points of the thesis's 9.72 % to within
+/// 1.5 points of its 14.70 %; no bond ever breaks in Ω_w, also with χ raised to 0.99.
 #[test]
 fn kalthoff_winkler_medium_hybrid_matches_the_standard_scheme() {
     let hybrid_scene = load("kalthoff-winkler", "medium-hybrid", &[]);
@@ -179,11 +179,18 @@ fn kalthoff_winkler_medium_hybrid_matches_the_standard_scheme() {
         s.broken_bonds()
     );
     assert!(last > initial, "Ω_s followed the cracks");
-    assert!(last < 0.4);
+    // The thesis (seed-thesis-ch2-3 §8.3): Ω_s 9.72 % initially, 14.70 % at the end; within
+    // ±1.5 points (issue 14 item 6; the grid is the scaled m = 4 one, not the thesis's m = 8).
+    assert!((initial - 0.0972).abs() <= 0.015, "initial Ω_s {initial}");
+    assert!((last - 0.1470).abs() <= 0.015, "final Ω_s {last}");
     for ((name, a), (_, b)) in h.crack_angles().iter().zip(s.crack_angles()) {
         let (a, b) = (a.unwrap(), b.unwrap());
         eprintln!("{name}: hybrid {a:.1}°, standard {b:.1}°");
-        assert!((a - b).abs() <= 3.0, "{name}: {a} vs {b}");
+        // Within 2° of each other and in 60–72° (issue 14 item 6: a band around the
+        // experiment's ≈ 70° that the PD runs of the papers fall in).
+        assert!((a - b).abs() <= 2.0, "{name}: {a} vs {b}");
+        assert!((60.0..=72.0).contains(&a), "{name}: hybrid {a}");
+        assert!((60.0..=72.0).contains(&b), "{name}: standard {b}");
     }
     let (dh, ds) = (h.damage(), s.damage());
     let differ = dh
@@ -366,4 +373,36 @@ fn motion_filtered_check_switches_exactly_like_the_exhaustive_check() {
         assert!(h.checked_bonds < e.checked_bonds / 2);
         assert_eq!(filtered.broken_bonds(), exhaustive.broken_bonds());
     }
+}
+
+/// The orbit stencils of the `*-fast` variants keep the hybrid's stable step at ≥ 0.6× the
+/// standard scheme's on the same grid (issue 14 item 6): m = 4 (`small-fast` against `small`)
+/// and m = 8 (the same variants at spacing 0.5 mm, the m = 8 orbits of `paper-fast`). The
+/// papers' δ/3 auxiliary grid gives 0.375× at m = 4 (docs/results.md), which this would catch.
+#[test]
+fn orbit_stencils_keep_the_stable_step_near_the_standard_schemes() {
+    let ratio = |set: &[&str], orbits: Option<&str>| {
+        let mut hybrid_set = set.to_vec();
+        if let Some(o) = orbits {
+            hybrid_set.push(o);
+        }
+        let hybrid =
+            DynamicSimulation::<2>::new(&load("kalthoff-winkler", "small-fast", &hybrid_set))
+                .unwrap()
+                .info()
+                .stable_dt;
+        let standard = DynamicSimulation::<2>::new(&load("kalthoff-winkler", "small", set))
+            .unwrap()
+            .info()
+            .stable_dt;
+        hybrid / standard
+    };
+    let m4 = ratio(&[], None);
+    let m8 = ratio(
+        &["discretization.spacing=\"0.5 mm\""],
+        Some("hybrid.collocation_orbits=[[3, 3], [4, 1], [4, 2]]"),
+    );
+    eprintln!("stable step, hybrid / standard: m = 4 {m4:.3}, m = 8 {m8:.3}");
+    assert!(m4 >= 0.6, "m = 4: {m4}");
+    assert!(m8 >= 0.6, "m = 8: {m8}");
 }

@@ -69,8 +69,16 @@ fn m_convergence() {
         assert!(w[1] < w[0], "standard: {standard:?}");
     }
     for k in 0..M_SPACINGS.len() {
-        assert!(wls4[k] * 10.0 <= wls2[k], "WLS-4 ≥ 10× WLS-2 at grid {k}");
-        assert!(wls6[k] * 1e3 <= wls2[k], "WLS-6 ≥ 10³× WLS-2 at grid {k}");
+        // The papers: WLS-4 ≈ 10² and WLS-6 ≈ 10⁵ times more accurate than WLS-2; asserted
+        // at half and a tenth of that (issue 14 item 6).
+        assert!(
+            wls4[k] * 50.0 <= wls2[k],
+            "WLS-4 ≥ 50× WLS-2 at grid {k}: {wls4:?} {wls2:?}"
+        );
+        assert!(
+            wls6[k] * 1e4 <= wls2[k],
+            "WLS-6 ≥ 10⁴× WLS-2 at grid {k}: {wls6:?} {wls2:?}"
+        );
     }
     // The WLS errors plateau: set by the basis order, not by m (within 3×: at m = 33 the
     // auxiliary points of WLS-2 fall half-way between nodes and the tie rule picks an
