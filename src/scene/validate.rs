@@ -802,9 +802,11 @@ fn hybrid_collocation(
             )),
         })
         .collect::<Result<_, _>>()?;
-    let rule = Collocation::orbits(spacing, &fixed, exponent)
-        .map_err(|m| ctx.error("hybrid.collocation_orbits", m))?;
-    Ok(rule)
+    // Each check names its own field: the orbits first, then the weight.
+    Collocation::orbits(spacing, &fixed, super::collocation::PAPERS_WEIGHT_EXPONENT)
+        .map_err(|m| ctx.error("hybrid.collocation_orbits", m))?
+        .with_weight(exponent)
+        .map_err(|m| ctx.error("hybrid.fit_weight", m))
 }
 
 /// Boxes grow by the thickness of their `outside` layers.

@@ -406,3 +406,49 @@ fn orbit_stencils_keep_the_stable_step_near_the_standard_schemes() {
     assert!(m4 >= 0.6, "m = 4: {m4}");
     assert!(m8 >= 0.6, "m = 8: {m8}");
 }
+
+/// The stencil fields of the `*-fast` variants are checked like every preset value: each
+/// refusal names the field and the allowed range; a stencil too small for WLS-2's fit is
+/// refused when the operator is built, naming `hybrid.collocation_orbits` (the field that chose
+/// the set), not the auxiliary grid.
+#[test]
+fn bad_stencil_fields_are_refused_with_the_field_and_range() {
+    let refused = |set: &[&str]| {
+        let set: Vec<String> = set.iter().map(|s| s.to_string()).collect();
+        Scene::load_with("kalthoff-winkler", Some("small-fast"), &set)
+            .err()
+            .unwrap_or_else(|| panic!("`{set:?}` was accepted"))
+            .to_string()
+    };
+    let weight = refused(&["hybrid.fit_weight=-1.0"]);
+    assert!(
+        weight.contains("hybrid.fit_weight") && weight.contains("[0, 64]"),
+        "{weight}"
+    );
+    let shape = refused(&["hybrid.collocation_orbits=[[1, 1, 2]]"]);
+    assert!(
+        shape.contains("hybrid.collocation_orbits") && shape.contains("0 ≤ a, b ≤ 64"),
+        "{shape}"
+    );
+    let itself = refused(&["hybrid.collocation_orbits=[[0, 0]]"]);
+    assert!(
+        itself.contains("hybrid.collocation_orbits") && itself.contains("(0, 0)"),
+        "{itself}"
+    );
+    let both = refused(&["hybrid.collocation_factor=3"]);
+    assert!(
+        both.contains("hybrid.collocation_orbits") && both.contains("not both"),
+        "{both}"
+    );
+    // Four nodes at (±1, 0), (0, ±1) and the node itself: fewer than WLS-2's six monomials.
+    let scene = load(
+        "kalthoff-winkler",
+        "small-fast",
+        &["hybrid.collocation_orbits=[[1, 0]]"],
+    );
+    let fit = DynamicSimulation::<2>::new(&scene)
+        .err()
+        .expect("a 5-node stencil cannot fit WLS-2")
+        .to_string();
+    assert!(fit.contains("hybrid.collocation_orbits"), "{fit}");
+}
