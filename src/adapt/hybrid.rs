@@ -314,13 +314,11 @@ impl<const D: usize> Hybrid<D> {
                         // √f·l − r = l (√f − r/l) ≥ l_min (√f − max r/l) while that is ≥ 0:
                         // one division per bond and one square root per node.
                         let least = this.node_least(i, &bonds, |r2, l2| -(r2 / l2));
-                        let stretch = sqrt_f - (-least).sqrt();
-                        if least == f64::INFINITY {
-                            f64::INFINITY
-                        } else if stretch >= 0.0 {
-                            stretch * shortest
-                        } else {
-                            f64::NEG_INFINITY
+                        match sqrt_f - (-least).sqrt() {
+                            // No checked bond (least = +∞ gives NaN here).
+                            _ if least == f64::INFINITY => f64::INFINITY,
+                            stretch if stretch >= 0.0 => stretch * shortest,
+                            _ => f64::NEG_INFINITY,
                         }
                     } else {
                         f64::INFINITY
@@ -359,13 +357,14 @@ impl<const D: usize> Hybrid<D> {
             let in_check_wls = |k: usize| this.in_check[k] && this.mask[k] == SchemeClass::Wls;
             let (flagged, (counted, critical)) = motion.fold_flagged(
                 in_check_wls,
-                |i| {
-                    let critical = node_critical(&(i as u32));
-                    let listed = if critical { vec![i as u32] } else { Vec::new() };
-                    (this.bond_count(i, families), listed)
-                },
                 || (0u64, Vec::new()),
-                |(bonds, mut list): (u64, Vec<u32>), (more, mut found): (u64, Vec<u32>)| {
+                |(bonds, mut list): (u64, Vec<u32>), i| {
+                    if node_critical(&(i as u32)) {
+                        list.push(i as u32);
+                    }
+                    (bonds + this.bond_count(i, families), list)
+                },
+                |(bonds, mut list), (more, mut found)| {
                     list.append(&mut found);
                     (bonds + more, list)
                 },

@@ -151,31 +151,34 @@ impl<const D: usize> MotionBound<D> {
         self.least_slack[self.cell_of[i] as usize] = f64::NEG_INFINITY;
     }
 
-    /// Map-reduce over the nodes k with `wanted(k)` that may have a critical bond, in parallel
+    /// Folds `step` over the nodes k with `wanted(k)` that may have a critical bond, in parallel
     /// over the cells whose bound reaches their least slack (the others are skipped without
-    /// visiting their nodes): their number and the reduction of `visit` over them (`zero`
-    /// makes the identity).
+    /// visiting their nodes); `zero` makes an empty accumulator and `join` merges two. Returns
+    /// the number of nodes visited and the accumulator.
     pub fn fold_flagged<T: Send>(
         &self,
         wanted: impl Fn(usize) -> bool + Sync,
-        visit: impl Fn(usize) -> T + Sync,
         zero: impl Fn() -> T + Sync + Send,
+        step: impl Fn(T, usize) -> T + Sync + Send,
         join: impl Fn(T, T) -> T + Sync + Send,
     ) -> (usize, T) {
-        let (join, zero) = (&join, &zero);
+        let (zero, step, join) = (&zero, &step, &join);
         self.bound
             .par_iter()
             .zip(self.least_slack.par_iter())
             .enumerate()
             .with_min_len(64)
             .filter(|(_, (bound, least))| self.reaches(**bound, **least))
-            .map(|(c, _)| {
-                self.cell_nodes[self.cell_offsets[c]..self.cell_offsets[c + 1]]
-                    .iter()
-                    .map(|&k| k as usize)
-                    .filter(|&k| wanted(k) && self.may_reach(k))
-                    .fold((0, zero()), |(n, acc), k| (n + 1, join(acc, visit(k))))
-            })
+            .fold(
+                || (0, zero()),
+                |acc, (c, _)| {
+                    self.cell_nodes[self.cell_offsets[c]..self.cell_offsets[c + 1]]
+                        .iter()
+                        .map(|&k| k as usize)
+                        .filter(|&k| wanted(k) && self.may_reach(k))
+                        .fold(acc, |(n, acc), k| (n + 1, step(acc, k)))
+                },
+            )
             .reduce(|| (0, zero()), |a, b| (a.0 + b.0, join(a.1, b.1)))
     }
 

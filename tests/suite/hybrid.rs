@@ -420,26 +420,30 @@ fn bad_stencil_fields_are_refused_with_the_field_and_range() {
             .unwrap_or_else(|| panic!("`{set:?}` was accepted"))
             .to_string()
     };
-    let weight = refused(&["hybrid.fit_weight=-1.0"]);
-    assert!(
-        weight.contains("hybrid.fit_weight") && weight.contains("[0, 64]"),
-        "{weight}"
-    );
-    let shape = refused(&["hybrid.collocation_orbits=[[1, 1, 2]]"]);
-    assert!(
-        shape.contains("hybrid.collocation_orbits") && shape.contains("0 ≤ a, b ≤ 64"),
-        "{shape}"
-    );
-    let itself = refused(&["hybrid.collocation_orbits=[[0, 0]]"]);
-    assert!(
-        itself.contains("hybrid.collocation_orbits") && itself.contains("(0, 0)"),
-        "{itself}"
-    );
-    let both = refused(&["hybrid.collocation_factor=3"]);
-    assert!(
-        both.contains("hybrid.collocation_orbits") && both.contains("not both"),
-        "{both}"
-    );
+    for (set, field, phrase) in [
+        ("hybrid.fit_weight=-1.0", "hybrid.fit_weight", "[0, 64]"),
+        (
+            "hybrid.collocation_orbits=[[1, 1, 2]]",
+            "hybrid.collocation_orbits",
+            "0 ≤ a, b ≤ 64",
+        ),
+        (
+            "hybrid.collocation_orbits=[[0, 0]]",
+            "hybrid.collocation_orbits",
+            "(0, 0)",
+        ),
+        (
+            "hybrid.collocation_factor=3",
+            "hybrid.collocation_orbits",
+            "not both",
+        ),
+    ] {
+        let message = refused(&[set]);
+        assert!(
+            message.contains(field) && message.contains(phrase),
+            "{set}: {message}"
+        );
+    }
     // Four nodes at (±1, 0), (0, ±1) and the node itself: fewer than WLS-2's six monomials.
     let scene = load(
         "kalthoff-winkler",
