@@ -127,3 +127,60 @@ fn wls4_error_is_time_stepping_error() {
     assert!((wls4 - 2.0).abs() < 0.1, "{wls4}");
     assert!((wls2 - 1.0).abs() < 0.2, "{wls2}");
 }
+
+/// Issue 14 item 2: the wide orbit stencil of the hybrid's Ω_w (the `medium-fast` set: orbits
+/// (1,1), (2,1), (3,0) with weight exponent 6) keeps the manufactured solution's operator error
+/// within 1.5× of the papers' δ/3 grid rule. WLS-2 on the quartic P of this preset against the
+/// analytic nonlocal operator L[P] (thesis (3.78)): the largest error over the interior rows,
+/// relative to the largest |L[P]|, on the uniform and the perturbed grid, at δ = 5Δx and 4Δx
+/// (Kalthoff–Winkler's m). The orbits are defined in 2D only, so there is no 1D counterpart.
+#[test]
+fn orbit_stencil_keeps_the_manufactured_operator_error() {
+    use peridyn::discretization::{Families, family};
+    use peridyn::model::pmb::Influence;
+    use peridyn::scheme::wls::{self, Basis, Collocation};
+    for variant in [None, Some("perturbed"), Some("m4"), Some("m4-perturbed")] {
+        let scene = Scene::load(PRESET, variant).unwrap();
+        let sim = ScalarSimulation::<2>::new(&scene).unwrap();
+        let positions = sim.positions();
+        let rows = sim.operator().rows.clone();
+        let radius = family::search_radius(scene.family_radius, scene.horizon, scene.spacing);
+        let families = Families::build(positions, radius);
+        let basis = Basis::new(2, 2);
+        // κ = 1, q = 2, ω = 1: the preset's kernel.
+        let l = wls::diffusion_l(&basis, 1.0, 2.0, scene.horizon, Influence::Constant);
+        let p: Vec<f64> = positions.iter().map(|x| quartic(x)).collect();
+        // Orbit offsets are in lattice spacings.
+        let orbits = Collocation::orbits(scene.spacing, &[[1, 1], [2, 1], [3, 0]], 6.0).unwrap();
+        let error = |rule: Collocation| {
+            let op = wls::diffusion_operator(
+                &rows,
+                positions,
+                &families,
+                &basis,
+                &l,
+                scene.horizon,
+                rule,
+            )
+            .unwrap();
+            let mut out = vec![0.0; p.len()];
+            op.apply(&p, &mut out);
+            let (mut worst, mut size) = (0.0f64, 0.0f64);
+            for &i in &rows {
+                let exact = pd_of_quartic(&positions[i as usize], scene.horizon);
+                worst = worst.max((out[i as usize] - exact).abs());
+                size = size.max(exact.abs());
+            }
+            worst / size
+        };
+        let (grid, wide) = (error(Collocation::grid(3)), error(orbits));
+        eprintln!(
+            "{variant:?}: WLS-2 operator error, δ/3 grid {grid:.3e}, orbits {wide:.3e} ({:.2}×)",
+            wide / grid
+        );
+        assert!(
+            wide <= 1.5 * grid,
+            "{variant:?}: orbits {wide:e} against grid {grid:e}"
+        );
+    }
+}
