@@ -14,6 +14,7 @@ use crate::scheme::{RowMask, ScalarOperator};
 
 /// What the force loop produces per node.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
 pub struct NodeTerms<const D: usize> {
     /// Force density (N/m³).
     pub force: [f64; D],
@@ -111,14 +112,6 @@ impl<const D: usize> Standard<'_, D> {
         let (families, law, quadrature) = (self.families, self.law, self.quadrature);
         assert_eq!(positions.len(), families.node_count());
         assert_eq!(intact.len(), families.bond_count());
-        let volumes = self.volumes;
-        let c = law.micromodulus;
-        let (h, reach, inv_dx) = (
-            law.horizon,
-            quadrature.horizon + 0.5 * quadrature.spacing,
-            1.0 / quadrature.spacing,
-        );
-        let beta = move |l: f64| ((reach - l) * inv_dx).clamp(0.0, 1.0);
         let rows = Rows {
             positions,
             families,
@@ -127,12 +120,31 @@ impl<const D: usize> Standard<'_, D> {
             s0: law.critical_stretch,
             skip,
         };
-        // One monomorphized loop per (influence, β, volume) combination: no branches inside.
+        self.with_bond_law(GatherLoop {
+            rows: &rows,
+            intact,
+            terms,
+        })
+    }
+
+    /// Runs `bond_loop` with this scheme's bond weight ω c β (times V where all volumes are
+    /// equal) and per-node volume V'_j: one monomorphized loop per (influence, β, volume)
+    /// combination, so no branch on them inside.
+    pub(crate) fn with_bond_law<L: BondLoop>(&self, bond_loop: L) -> u64 {
+        let (law, quadrature) = (self.law, self.quadrature);
+        let volumes = self.volumes;
+        let c = law.micromodulus;
+        let (h, reach, inv_dx) = (
+            law.horizon,
+            quadrature.horizon + 0.5 * quadrature.spacing,
+            1.0 / quadrature.spacing,
+        );
+        let beta = move |l: f64| ((reach - l) * inv_dx).clamp(0.0, 1.0);
         macro_rules! with_volume {
             ($weight:expr) => {
                 match self.uniform_volume {
-                    Some(v) => pmb_rows(&rows, intact, terms, move |l| $weight(l) * v, |_| 1.0),
-                    None => pmb_rows(&rows, intact, terms, $weight, |j| volumes[j]),
+                    Some(v) => bond_loop.run(move |l| $weight(l) * v, |_| 1.0),
+                    None => bond_loop.run($weight, |j| volumes[j]),
                 }
             };
         }
@@ -309,6 +321,25 @@ pub fn diffusion_operator<const D: usize>(
 /// Bond state μ: 1 intact, 0 broken (2.34). One byte per directed bond.
 pub fn intact_bonds(count: usize) -> Vec<u8> {
     vec![1; count]
+}
+
+/// A PMB force loop, run with the bond weight ω c β (times V where all volumes are equal)
+/// and the volume V'_j of [`Standard::with_bond_law`]. Returns the directed bonds broken.
+pub(crate) trait BondLoop {
+    fn run(self, weight: impl Fn(f64) -> f64 + Sync, volume: impl Fn(usize) -> f64 + Sync) -> u64;
+}
+
+/// The per-node gather: every directed bond evaluated from its own row.
+struct GatherLoop<'a, 'b, const D: usize, M> {
+    rows: &'a Rows<'a, D, M>,
+    intact: &'b mut [u8],
+    terms: &'b mut [NodeTerms<D>],
+}
+
+impl<const D: usize, M: RowMask> BondLoop for GatherLoop<'_, '_, D, M> {
+    fn run(self, weight: impl Fn(f64) -> f64 + Sync, volume: impl Fn(usize) -> f64 + Sync) -> u64 {
+        pmb_rows(self.rows, self.intact, self.terms, weight, volume)
+    }
 }
 
 /// Nodes per task of the force loop.

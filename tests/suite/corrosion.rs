@@ -162,6 +162,36 @@ fn corrosion_3d_full_size_hybrid_volume_loss_follows_the_standard_scheme() {
     assert!(worst < 0.02, "{worst}");
 }
 
+/// The papers' m = 6 in CI (issue 14 item 6): `ci-m6` keeps the full scene's Δx = 0.1 mm,
+/// δ = 0.6 mm (925-node families, 123 WLS collocation nodes) and specimen in a smaller sphere.
+/// The fixed hybrid's relative volume loss follows the all-standard run within 2 % of the
+/// initial solid volume at every output time (the criterion of the other corrosion-3d checks),
+/// while the specimen loses a substantial part of its volume; no node of Ω_w is ever solid.
+/// Not met yet, so run on demand (`-- --ignored`, 41 s here): the smaller sphere brings the
+/// C = 0 shell close to Ω_s and the difference grows to 0.0226 (radius 3.0 mm, Δt = 8 s; 0.0229
+/// at Δt = 4 s, so not a time-step effect; 0.0229 at radius 2.7 mm), against 0.0080 in the full
+/// 3.6 mm sphere. See docs/results.md, "corrosion-3d at m = 6 in CI".
+#[test]
+#[ignore]
+fn corrosion_3d_m6_hybrid_volume_loss_follows_the_standard_scheme() {
+    let hybrid = corrosion_3d(Some("ci-m6"), &[], 10);
+    let standard = corrosion_3d(Some("ci-m6-standard"), &[], 10);
+    let worst = largest_difference(&hybrid, &standard);
+    let (last_h, last_s) = (hybrid.last().unwrap(), standard.last().unwrap());
+    eprintln!(
+        "m = 6: largest volume-loss difference {worst:.4}; final {:.4} (hybrid) vs {:.4} (standard); Ω_s {:.2} %",
+        last_h.1,
+        last_s.1,
+        100.0 * last_h.3
+    );
+    assert!(worst < 0.02, "{worst}");
+    assert!(last_s.1 > 0.3, "the specimen dissolves: {}", last_s.1);
+    assert!(
+        hybrid.iter().all(|r| r.4 == 0.0),
+        "a node of Ω_w turned solid"
+    );
+}
+
 /// With no held layer, the 3D bi-material scheme conserves mass (no-flux surface) to 1e-10.
 #[test]
 fn corrosion_3d_standard_conserves_mass_without_a_sink() {
