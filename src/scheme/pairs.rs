@@ -14,7 +14,7 @@
 use rayon::prelude::*;
 
 use crate::discretization::{Families, Quadrature};
-use crate::scheme::standard::{BondLoop, NodeTerms, Standard};
+use crate::scheme::standard::{BondLoop, LANES, NodeTerms, Standard, lane_offsets};
 
 /// Fewer blocks than this and the pair loop would leave a thread idle for half the step: the
 /// gather loop is used instead.
@@ -291,9 +291,6 @@ where
     block_portable(inputs, block, region)
 }
 
-/// Bonds evaluated together (as in the gather loop: SIMD square roots and divisions).
-const LANES: usize = 4;
-
 /// Every forward bond of the block's nodes: the force on both ends, ¼ of the bond's
 /// w β V on each end's energy density (W_i = ½ Σ_j ½ c s² ‖ξ‖ β V_j, (2.26)–(2.27)), breaks
 /// recorded in both directed states and both ends' damage numerators. Returns the directed
@@ -337,22 +334,7 @@ where
         for b in (bonds.start..blocked).step_by(LANES) {
             let nb: &[u32; LANES] = neighbors[b..b + LANES].try_into().expect("4 lanes");
             let ln: &[f64; LANES] = lengths[b..b + LANES].try_into().expect("4 lanes");
-            let mut d = [[0.0; LANES]; D];
-            let mut vol = [0.0; LANES];
-            for l in 0..LANES {
-                let j = nb[l] as usize;
-                let p = positions[j];
-                for k in 0..D {
-                    d[k][l] = p[k] - y_i[k];
-                }
-                vol[l] = volume(j);
-            }
-            let mut r2 = [0.0; LANES];
-            for d_k in &d {
-                for l in 0..LANES {
-                    r2[l] += d_k[l] * d_k[l];
-                }
-            }
+            let (d, vol, r2) = lane_offsets(y_i, nb, positions, volume);
             let st: [u8; LANES] = state[b - first_bond..b - first_bond + LANES]
                 .try_into()
                 .expect("4 lanes");

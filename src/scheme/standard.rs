@@ -433,7 +433,35 @@ fn rows_avx2<const D: usize, M: RowMask>(
 
 /// Bonds evaluated together: the lane loops below are written so the compiler turns them
 /// into SIMD arithmetic (two or four square roots and divisions per instruction).
-const LANES: usize = 4;
+pub(crate) const LANES: usize = 4;
+
+/// For `LANES` bonds of node i (at `y_i`) to `neighbors`: the offsets y_j − y_i by component
+/// and lane, V'_j, and ‖y_j − y_i‖² (the lane loops of both force loops).
+#[inline(always)]
+pub(crate) fn lane_offsets<const D: usize>(
+    y_i: [f64; D],
+    neighbors: &[u32],
+    positions: &[[f64; D]],
+    volume: &impl Fn(usize) -> f64,
+) -> ([[f64; LANES]; D], [f64; LANES], [f64; LANES]) {
+    let mut d = [[0.0; LANES]; D];
+    let mut vol = [0.0; LANES];
+    for l in 0..LANES {
+        let j = neighbors[l] as usize;
+        let p = positions[j];
+        for k in 0..D {
+            d[k][l] = p[k] - y_i[k];
+        }
+        vol[l] = volume(j);
+    }
+    let mut r2 = [0.0; LANES];
+    for d_k in &d {
+        for l in 0..LANES {
+            r2[l] += d_k[l] * d_k[l];
+        }
+    }
+    (d, vol, r2)
+}
 
 /// One node's row: (force density, 4·W_i, bonds broken now). Blocks of `LANES` bonds are
 /// evaluated branch-free (a broken bond weighs 0), the remainder one by one.
@@ -460,22 +488,7 @@ fn pmb_row<const D: usize>(
         .zip(lengths[..blocked].chunks_exact(LANES))
         .zip(state[..blocked].chunks_exact_mut(LANES))
     {
-        let mut d = [[0.0; LANES]; D];
-        let mut vol = [0.0; LANES];
-        for l in 0..LANES {
-            let j = nb[l] as usize;
-            let p = positions[j];
-            for k in 0..D {
-                d[k][l] = p[k] - y_i[k];
-            }
-            vol[l] = volume(j);
-        }
-        let mut r2 = [0.0; LANES];
-        for d_k in &d {
-            for l in 0..LANES {
-                r2[l] += d_k[l] * d_k[l];
-            }
-        }
+        let (d, vol, r2) = lane_offsets(y_i, nb, positions, volume);
         let mut scale = [0.0; LANES];
         let mut breaks = false;
         let mut keep = [false; LANES];
