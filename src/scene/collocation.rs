@@ -95,11 +95,11 @@ impl Collocation {
         })
     }
 
-    /// The preset field that chose this rule, for error messages.
+    /// The field (within its preset table) that chose this rule, for error messages.
     pub fn field(&self) -> &'static str {
         match self.targets {
-            Targets::Grid(_) => "hybrid.collocation_factor",
-            Targets::Orbits { .. } => "hybrid.collocation_orbits",
+            Targets::Grid(_) => "collocation_factor",
+            Targets::Orbits { .. } => "collocation_orbits",
         }
     }
 

@@ -142,14 +142,12 @@ pub struct MultigridSpec {
 }
 
 /// The scheme on the coarse level of a multi-adaptive scene (thesis §3.5): "adaptive, standard"
-/// or "adaptive, hybrid" (WLS-2 collocation on the coarse active nodes, auxiliary grid δ/k_aux).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// or "adaptive, hybrid" (WLS-2 collocation on the coarse active nodes over the given rule).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum CoarseScheme {
     #[default]
     Standard,
-    Wls {
-        collocation_factor: usize,
-    },
+    Wls(collocation::Collocation),
 }
 
 /// Where the fine level is active.

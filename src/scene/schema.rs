@@ -120,6 +120,13 @@ pub struct MultigridTable {
     /// δ/4: 49 collocation nodes at m⁺ = 12 in 2D; 3 in 3D, 123 nodes).
     #[serde(default)]
     pub collocation_factor: Option<usize>,
+    /// With `coarse = "wls"`, 2D only, instead of the auxiliary grid: the collocation targets
+    /// as whole orbits [a, b] of coarse-lattice offsets (±a, ±b), (±b, ±a) (issue 14's stencils).
+    #[serde(default)]
+    pub collocation_orbits: Option<Vec<Vec<u32>>>,
+    /// With `coarse = "wls"`: exponent a of the fit weight exp(−a d²/r̄²) (the papers' 16).
+    #[serde(default)]
+    pub fit_weight: Option<f64>,
 }
 
 /// The `multigrid.coarse` scheme names.

@@ -455,6 +455,8 @@ fn multigrid(
                 (m.transfer.is_some(), "transfer"),
                 (m.coarse.is_some(), "coarse"),
                 (m.collocation_factor.is_some(), "collocation_factor"),
+                (m.collocation_orbits.is_some(), "collocation_orbits"),
+                (m.fit_weight.is_some(), "fit_weight"),
             ] {
                 if given {
                     return Err(ctx.error(
@@ -511,25 +513,33 @@ fn multigrid(
             ));
         }
     };
+    let wls_fields = [
+        (m.collocation_factor.is_some(), "collocation_factor"),
+        (m.collocation_orbits.is_some(), "collocation_orbits"),
+        (m.fit_weight.is_some(), "fit_weight"),
+    ];
     let coarse = match m.coarse.unwrap_or(CoarseKind::Standard) {
-        CoarseKind::Standard if m.collocation_factor.is_some() => {
-            return Err(ctx.error(
-                "multigrid.collocation_factor",
-                "belongs to a WLS coarse level: set multigrid.coarse = \"wls\" or remove it",
-            ));
-        }
-        CoarseKind::Standard => CoarseScheme::Standard,
-        CoarseKind::Wls => {
-            let default = if dim == 3 { 3 } else { 4 };
-            let k = collocation_factor(
-                ctx,
-                "multigrid.collocation_factor",
-                m.collocation_factor.unwrap_or(default),
-            )?;
-            CoarseScheme::Wls {
-                collocation_factor: k,
+        CoarseKind::Standard => {
+            if let Some((_, field)) = wls_fields.iter().find(|(given, _)| *given) {
+                return Err(ctx.error(
+                    &format!("multigrid.{field}"),
+                    "belongs to a WLS coarse level: set multigrid.coarse = \"wls\" or remove it",
+                ));
             }
+            CoarseScheme::Standard
         }
+        CoarseKind::Wls => CoarseScheme::Wls(collocation_rule(
+            ctx,
+            RuleFields {
+                table: "multigrid",
+                factor: m.collocation_factor,
+                default_factor: if dim == 3 { 3 } else { 4 },
+                orbits: m.collocation_orbits.as_deref(),
+                weight: m.fit_weight,
+            },
+            dim,
+            spacing,
+        )?),
     };
     Ok(Some(MultigridSpec {
         ratio: m.ratio,
@@ -680,7 +690,18 @@ fn scheme(
         None if kind.is_hybrid() => {
             return Ok(SchemeSpec {
                 kind,
-                collocation: hybrid_collocation(p, ctx, dim, spacing)?,
+                collocation: collocation_rule(
+                    ctx,
+                    RuleFields {
+                        table: "hybrid",
+                        factor: p.hybrid.collocation_factor,
+                        default_factor: 3,
+                        orbits: p.hybrid.collocation_orbits.as_deref(),
+                        weight: p.hybrid.fit_weight,
+                    },
+                    dim,
+                    spacing,
+                )?,
             });
         }
         None => {
@@ -757,38 +778,53 @@ fn hybrid(
     }))
 }
 
-/// The Ω_w collocation rule of a hybrid: the papers' auxiliary grid δ/k_aux (default k_aux = 3:
-/// 29 nodes in 2D, 123 in 3D), or with `hybrid.collocation_orbits` (2D only) whole orbits of
-/// lattice offsets and the weight exponent `hybrid.fit_weight` (default the papers' 16).
-fn hybrid_collocation(
-    p: &Preset,
+/// The collocation fields of one preset table (`hybrid` for Ω_w, `multigrid` for a WLS coarse
+/// level).
+struct RuleFields<'a> {
+    table: &'static str,
+    factor: Option<usize>,
+    default_factor: usize,
+    orbits: Option<&'a [Vec<u32>]>,
+    weight: Option<f64>,
+}
+
+/// A WLS collocation rule: the papers' auxiliary grid δ/k_aux (`<table>.collocation_factor`,
+/// default k_aux = 3 for Ω_w: 29 collocation nodes in 2D, 123 in 3D), or with
+/// `<table>.collocation_orbits` (2D only) whole orbits of lattice offsets, and the weight exponent
+/// `<table>.fit_weight` (default the papers' 16).
+fn collocation_rule(
     ctx: &ErrorContext,
+    f: RuleFields,
     dim: usize,
     spacing: f64,
 ) -> Result<Collocation, SceneError> {
-    let h = &p.hybrid;
-    let exponent = h
-        .fit_weight
+    let field = |name: &str| format!("{}.{name}", f.table);
+    let exponent = f
+        .weight
         .unwrap_or(super::collocation::PAPERS_WEIGHT_EXPONENT);
-    let Some(orbits) = &h.collocation_orbits else {
-        let k = match h.collocation_factor {
-            Some(k) => collocation_factor(ctx, "hybrid.collocation_factor", k)?,
-            None => 3,
-        };
+    let Some(orbits) = f.orbits else {
+        let k = collocation_factor(
+            ctx,
+            &field("collocation_factor"),
+            f.factor.unwrap_or(f.default_factor),
+        )?;
         return Collocation::grid(k)
             .with_weight(exponent)
-            .map_err(|m| ctx.error("hybrid.fit_weight", m));
+            .map_err(|m| ctx.error(&field("fit_weight"), m));
     };
-    if h.collocation_factor.is_some() {
+    let orbits_field = field("collocation_orbits");
+    if f.factor.is_some() {
         return Err(ctx.error(
-            "hybrid.collocation_orbits",
-            "give either hybrid.collocation_factor (the auxiliary grid) or \
-             hybrid.collocation_orbits, not both",
+            &orbits_field,
+            format!(
+                "give either {} (the auxiliary grid) or {orbits_field}, not both",
+                field("collocation_factor")
+            ),
         ));
     }
     if dim != 2 {
         return Err(ctx.error(
-            "hybrid.collocation_orbits",
+            &orbits_field,
             format!("orbits of lattice offsets are defined in 2D only; this scene is {dim}D"),
         ));
     }
@@ -797,16 +833,16 @@ fn hybrid_collocation(
         .map(|o| match o.as_slice() {
             [a, b] if *a <= 64 && *b <= 64 => Ok([*a as u8, *b as u8]),
             _ => Err(ctx.error(
-                "hybrid.collocation_orbits",
+                &orbits_field,
                 format!("each orbit is [a, b] with 0 ≤ a, b ≤ 64 (in lattice spacings), got {o:?}"),
             )),
         })
         .collect::<Result<_, _>>()?;
     // Each check names its own field: the orbits first, then the weight.
     Collocation::orbits(spacing, &fixed, super::collocation::PAPERS_WEIGHT_EXPONENT)
-        .map_err(|m| ctx.error("hybrid.collocation_orbits", m))?
+        .map_err(|m| ctx.error(&orbits_field, m))?
         .with_weight(exponent)
-        .map_err(|m| ctx.error("hybrid.fit_weight", m))
+        .map_err(|m| ctx.error(&field("fit_weight"), m))
 }
 
 /// Boxes grow by the thickness of their `outside` layers.

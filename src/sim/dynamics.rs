@@ -4,7 +4,6 @@
 //! named, timed stages and emits plain-data `Frame`s; it knows nothing of viewers or user
 //! interfaces.
 
-use crate::scheme::wls::Collocation;
 use rayon::prelude::*;
 
 use super::unbounded::{self, BondLayer};
@@ -279,12 +278,15 @@ impl<const D: usize> DynamicSimulation<D> {
                     &law,
                     scene.scheme.collocation,
                 )
-                .map_err(|e| scene.error(scene.scheme.collocation.field(), e.to_string()))?;
+                .map_err(|e| {
+                    let field = format!("hybrid.{}", scene.scheme.collocation.field());
+                    scene.error(&field, e.to_string())
+                })?;
                 Some(h)
             }
         };
         let coarse_wls = match (&multigrid, scene.multigrid.as_ref().map(|m| m.coarse)) {
-            (Some(g), Some(CoarseScheme::Wls { collocation_factor })) => {
+            (Some(g), Some(CoarseScheme::Wls(collocation))) => {
                 let rows: Vec<u32> = (0..g.coarse_count as u32)
                     .filter(|&i| g.class[i as usize].is_active())
                     .collect();
@@ -293,9 +295,12 @@ impl<const D: usize> DynamicSimulation<D> {
                     discretization.nodes.reference(),
                     &discretization.families,
                     &law,
-                    Collocation::grid(collocation_factor),
+                    collocation,
                 )
-                .map_err(|e| scene.error("multigrid.collocation_factor", e.to_string()))?;
+                .map_err(|e| {
+                    let field = format!("multigrid.{}", collocation.field());
+                    scene.error(&field, e.to_string())
+                })?;
                 Some(w)
             }
             _ => None,

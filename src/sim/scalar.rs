@@ -303,7 +303,10 @@ impl<const D: usize> ScalarSimulation<D> {
                     &kernel,
                     scene.scheme.collocation,
                 )
-                .map_err(|e| scene.error(scene.scheme.collocation.field(), e.to_string()))?;
+                .map_err(|e| {
+                    let field = format!("hybrid.{}", scene.scheme.collocation.field());
+                    scene.error(&field, e.to_string())
+                })?;
                 Some(h)
             }
             _ => None,
