@@ -447,17 +447,21 @@ fn multigrid(
             "a multi-grid scene needs an unperturbed lattice (fine cells split the coarse ones)",
         ));
     }
+    // The fields of a WLS coarse level.
+    let wls_fields = [
+        (m.collocation_factor.is_some(), "collocation_factor"),
+        (m.collocation_orbits.is_some(), "collocation_orbits"),
+        (m.fit_weight.is_some(), "fit_weight"),
+    ];
     let refinement = match physics {
         Physics::Diffusion | Physics::Corrosion => {
-            for (given, field) in [
+            let switch_fields = [
                 (m.band.is_some(), "band"),
                 (m.chi.is_some(), "chi"),
                 (m.transfer.is_some(), "transfer"),
                 (m.coarse.is_some(), "coarse"),
-                (m.collocation_factor.is_some(), "collocation_factor"),
-                (m.collocation_orbits.is_some(), "collocation_orbits"),
-                (m.fit_weight.is_some(), "fit_weight"),
-            ] {
+            ];
+            for &(given, field) in switch_fields.iter().chain(&wls_fields) {
                 if given {
                     return Err(ctx.error(
                         &format!("multigrid.{field}"),
@@ -513,11 +517,6 @@ fn multigrid(
             ));
         }
     };
-    let wls_fields = [
-        (m.collocation_factor.is_some(), "collocation_factor"),
-        (m.collocation_orbits.is_some(), "collocation_orbits"),
-        (m.fit_weight.is_some(), "fit_weight"),
-    ];
     let coarse = match m.coarse.unwrap_or(CoarseKind::Standard) {
         CoarseKind::Standard => {
             if let Some((_, field)) = wls_fields.iter().find(|(given, _)| *given) {
