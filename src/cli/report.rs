@@ -2,7 +2,7 @@
 
 use crate::control::driver::field_hash;
 use crate::runner::RunSummary;
-use crate::scene::{Physics, Scene};
+use crate::scene::{CoarseScheme, Physics, Scene};
 use crate::solver::SimInfo;
 
 /// A ratio to a bound, readable from 10⁻⁶ to 10.
@@ -21,8 +21,12 @@ pub fn describe(scene: &Scene, info: &SimInfo, steps: Option<u64>) -> String {
         None => scene.name.clone(),
     };
     let steps = steps.unwrap_or(info.total_steps).min(info.total_steps);
+    let coarse = match scene.multigrid.as_ref().map(|m| &m.coarse) {
+        Some(CoarseScheme::Wls(_)) => " (coarse level WLS-2)",
+        _ => "",
+    };
     let stencil = format!(
-        "{} scheme, {:.1} nodes per stencil",
+        "{} scheme{coarse}, {:.1} nodes per stencil",
         scene.scheme.kind.name(),
         info.stencil
     );

@@ -459,9 +459,8 @@ fn multigrid(
                 (m.band.is_some(), "band"),
                 (m.chi.is_some(), "chi"),
                 (m.transfer.is_some(), "transfer"),
-                (m.coarse.is_some(), "coarse"),
             ];
-            for &(given, field) in switch_fields.iter().chain(&wls_fields) {
+            for &(given, field) in &switch_fields {
                 if given {
                     return Err(ctx.error(
                         &format!("multigrid.{field}"),

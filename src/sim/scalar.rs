@@ -20,10 +20,10 @@ use crate::integrate::stability;
 use crate::model::corrosion::CorrosionLaw;
 use crate::model::diffusion::DiffusionKernel;
 use crate::model::pmb::{Influence, PmbLaw};
-use crate::scene::{Condition, Physics, Reference, Scene, SceneError, StepSize};
-use crate::scheme::ScalarOperator;
+use crate::scene::{CoarseScheme, Condition, Physics, Reference, Scene, SceneError, StepSize};
 use crate::scheme::standard;
-use crate::scheme::wls::{self, Basis};
+use crate::scheme::wls::{self, Basis, Collocation};
+use crate::scheme::{ScalarOperator, VectorOperator};
 use crate::solver::{
     Clock, Integrator, Lap, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
 };
@@ -226,6 +226,46 @@ fn euler_stable_step(
     }
 }
 
+/// The WLS rows of a scalar scene, with the collocation rule and the preset table it came
+/// from: Ω_w of the fixed corrosion hybrid (`hybrid`), or the active coarse nodes of a
+/// multi-grid scene whose coarse level runs WLS (`multigrid.coarse = "wls"`, the thesis's
+/// §3.5.2 screw: "coarse WLS elsewhere"). On the multi-grid, coarse nodes within δ of the
+/// initial solid stay standard (their bonds carry the phases' classes; the solid only
+/// shrinks, so a WLS row never sees one), as do held, fictitious and fine nodes.
+fn wls_mask<const D: usize>(
+    scene: &Scene,
+    positions: &[[f64; D]],
+    corrosion: &Option<(CorrosionLaw, PhaseChange, Vec<Phase>)>,
+    multigrid: &Option<MultiGrid<D>>,
+    is_held: &[bool],
+) -> Option<(Vec<SchemeClass>, Collocation, &'static str)> {
+    let solid = |band: f64| {
+        let solid: Vec<bool> = match corrosion {
+            Some((_, _, phase)) => phase.iter().map(|p| p.is_solid()).collect(),
+            None => vec![false; positions.len()],
+        };
+        fixed::corrosion_mask(positions, &solid, is_held, band)
+    };
+    match (&scene.hybrid, multigrid, scene.multigrid.as_ref()) {
+        (Some(spec), None, _) if corrosion.is_some() => {
+            Some((solid(spec.band), scene.scheme.collocation, "hybrid"))
+        }
+        (_, Some(g), Some(spec)) => {
+            let CoarseScheme::Wls(rule) = spec.coarse else {
+                return None;
+            };
+            let mut mask = solid(scene.horizon);
+            for (m, class) in mask.iter_mut().zip(&g.class) {
+                if *m == SchemeClass::Wls && *class != GridClass::CoarseActive {
+                    *m = SchemeClass::Standard;
+                }
+            }
+            Some((mask, rule, "multigrid"))
+        }
+        _ => None,
+    }
+}
+
 impl<const D: usize> ScalarSimulation<D> {
     pub fn new(scene: &Scene) -> Result<Self, SceneError> {
         let (mut discretization, multigrid) = match &scene.multigrid {
@@ -292,24 +332,14 @@ impl<const D: usize> ScalarSimulation<D> {
             let (change, phase) = PhaseChange::initial(&law, &field, &active_volumes);
             (law, change, phase)
         });
-        let hybrid = match (&scene.hybrid, &corrosion) {
-            (Some(spec), Some((_, _, phase))) => {
-                let solid: Vec<bool> = phase.iter().map(|p| p.is_solid()).collect();
-                let mask = fixed::corrosion_mask(positions, &solid, &is_held, spec.band);
-                let h = FixedHybrid::new(
-                    mask,
-                    positions,
-                    &discretization.families,
-                    &kernel,
-                    scene.scheme.collocation,
-                )
-                .map_err(|e| {
-                    let field = format!("hybrid.{}", scene.scheme.collocation.field());
-                    scene.error(&field, e.to_string())
-                })?;
-                Some(h)
-            }
-            _ => None,
+        let hybrid = match wls_mask(scene, positions, &corrosion, &multigrid, &is_held) {
+            Some((mask, rule, table)) => Some(
+                FixedHybrid::new(mask, positions, &discretization.families, &kernel, rule)
+                    .map_err(|e| {
+                        scene.error(&format!("{table}.{}", rule.field()), e.to_string())
+                    })?,
+            ),
+            None => None,
         };
         let standard_rows: Vec<u32> = match &hybrid {
             Some(h) => free
@@ -462,6 +492,12 @@ impl<const D: usize> ScalarSimulation<D> {
 
     pub fn operator(&self) -> &ScalarOperator {
         &self.operator
+    }
+
+    /// The WLS rows (Ω_w of a fixed corrosion hybrid, or a multi-grid scene's WLS coarse
+    /// level), with the liquid's κ, if any.
+    pub fn wls_operator(&self) -> Option<&VectorOperator<1>> {
+        self.hybrid.as_ref().map(|h| &h.wls)
     }
 
     fn phase(&self) -> Option<&[Phase]> {

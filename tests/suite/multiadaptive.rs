@@ -447,4 +447,3 @@ fn scaled_full_band_runs_meet_the_energy_bound() {
         true,
     );
 }
-
