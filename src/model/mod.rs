@@ -2,5 +2,6 @@
 
 pub mod corrosion;
 pub mod diffusion;
+pub mod nernst_planck;
 pub mod osb;
 pub mod pmb;

@@ -20,6 +20,7 @@ mod hybrid;
 mod kalthoff_winkler;
 mod multiadaptive;
 mod multigrid;
+mod nnpp;
 mod operators;
 mod panel;
 mod remote;
