@@ -13,6 +13,7 @@
 //! ([derived] in the note: the thesis calls K3 "analogous" and omits it). In 3D with ω ≡ 1 this
 //! is K1 = 3(1 − q1)/(π δ^{2−2q1}), the note's closed form.
 
+use super::diffusion;
 use super::pmb::{Influence, influence};
 
 /// Faraday's constant F, C/mol (CODATA 2018, exact).
@@ -20,25 +21,10 @@ pub const FARADAY: f64 = 96_485.332_12;
 /// The molar gas constant R, J/(mol K) (CODATA 2018, exact).
 pub const GAS_CONSTANT: f64 = 8.314_462_618;
 
-/// ∫_0^δ ω(r) r^{1−2q} dr in closed form; finite for q < 1.
-fn radial_moment(influence: Influence, q: f64, horizon: f64) -> f64 {
-    let a = 2.0 - 2.0 * q;
-    let power = horizon.powf(a);
-    match influence {
-        Influence::Constant => power / a,
-        // ∫ (1 − r/δ) r^{a−1} dr = δ^a (1/a − 1/(a + 1)).
-        Influence::Linear => power / (a * (a + 1.0)),
-    }
-}
-
-/// The kernel's second moment M(q) = ∫_H ω ξ₁² / ‖ξ‖^{n+2q} dV in dimension `dim` (1, 2, 3).
+/// The kernel's second moment M(q) = ∫_H ω ξ₁² / ‖ξ‖^{n+2q} dV in dimension `dim` (1, 2, 3):
+/// twice the calibration moment of a scalar kernel ω/r^p at p = n + 2q.
 pub fn second_moment(dim: usize, influence: Influence, q: f64, horizon: f64) -> f64 {
-    let sphere = match dim {
-        1 => 2.0,
-        2 => 2.0 * std::f64::consts::PI,
-        _ => 4.0 * std::f64::consts::PI,
-    };
-    sphere / dim as f64 * radial_moment(influence, q, horizon)
+    2.0 * diffusion::second_moment(dim, dim as f64 + 2.0 * q, influence, horizon)
 }
 
 /// The kernel exponents q1, q2, q3 of (2.63)–(2.64) (each < 1) and the influence function.

@@ -5,25 +5,7 @@ use super::error::{ErrorContext, SceneError};
 use super::schema::{AbsorbingTable, Physics, Preset, PulseDirectionTable};
 use super::validate::{length, point, positive};
 use super::*;
-use crate::model::pmb::Influence;
-
-/// ½ ∫_H ω(r) ξ₁² / r^p dV: the second moment that calibrates a scalar PD kernel to its local
-/// limit (c_s = χ² / moment; thesis (4.47), (4.51), (4.87); Table 4.1 for diffusion).
-pub fn second_moment(dim: usize, exponent: f64, influence: Influence, horizon: f64) -> f64 {
-    let n = dim as f64;
-    let sphere = match dim {
-        1 => 2.0,
-        2 => std::f64::consts::TAU,
-        _ => 4.0 * std::f64::consts::PI,
-    };
-    // ∫_0^δ ω(r) r^a dr with a = n + 1 − p.
-    let a = n + 1.0 - exponent;
-    let radial = match influence {
-        Influence::Constant => horizon.powf(a + 1.0) / (a + 1.0),
-        Influence::Linear => horizon.powf(a + 1.0) * (1.0 / (a + 1.0) - 1.0 / (a + 2.0)),
-    };
-    sphere / (2.0 * n) * radial
-}
+use crate::model::diffusion::second_moment;
 
 /// The scalar wave: χ, d, and its kernel c_s ω / r^p as a [`DiffusionSpec`] (the operator is the
 /// diffusion one with κ = c_s).

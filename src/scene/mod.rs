@@ -13,7 +13,7 @@ pub mod reference;
 pub mod schema;
 pub mod units;
 mod validate;
-pub use absorbing::second_moment;
+pub use crate::model::diffusion::second_moment;
 
 use std::path::Path;
 
