@@ -2,6 +2,8 @@
 
 pub mod adr;
 pub mod linear;
+pub mod newton;
+pub mod sparse;
 pub mod stability;
 pub mod verlet;
 

@@ -3,6 +3,7 @@
 use rayon::prelude::*;
 
 pub mod dual_horizon;
+pub mod nnpp;
 pub mod pairs;
 pub mod runs;
 pub mod standard;

@@ -1,0 +1,184 @@
+//! The semi-implicit step of the NNPP system (thesis §3.1.2, (3.11)–(3.21); seed-thesis-ch2-3
+//! §2.3, in the order the note infers): the Poisson solve for φ with C^n, then per species
+//! (Jacobi style: the other species and the reactions' other factors at t^n) the modified
+//! Newton iteration (3.16)–(3.17) with λ = 1 and the Jacobian built once per step and frozen.
+//! With rate laws linear in the implicit species the residual is linear, so one iteration is
+//! exact up to the linear solve; the loop runs until the relative residual is below the
+//! tolerance or the iteration cap is reached (reported either way).
+
+use super::sparse::{DirectSolver, SparseError};
+use crate::adapt::masks::Phase;
+use crate::discretization::Families;
+use crate::scheme::nnpp::{FamilySystem, LinearSource, NnppFields, NnppOperator, Unknowns};
+
+/// What one semi-implicit step reports.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StepReport {
+    /// ‖K_φ φ − b_φ‖/‖b_φ‖ of the Poisson solve.
+    pub poisson_residual: f64,
+    /// Per species: the Newton residual ‖F(C^{n+1,m})‖/‖F(C^{n+1,0})‖ at the last iterate.
+    pub newton_residual: Vec<f64>,
+    /// Per species: the largest relative residual of its linear solves.
+    pub linear_residual: Vec<f64>,
+    /// Per species: Newton iterations taken.
+    pub iterations: Vec<usize>,
+}
+
+/// The two systems and their factorizations, kept across steps.
+pub struct SemiImplicit {
+    species: FamilySystem,
+    poisson: FamilySystem,
+    species_solver: DirectSolver,
+    poisson_solver: DirectSolver,
+    /// Solid nodes when the Poisson pattern was built (it is rebuilt when a phase changes).
+    poisson_solid: usize,
+    held: Vec<bool>,
+    pub tolerance: f64,
+    pub max_iterations: usize,
+    residual: Vec<f64>,
+    old: Vec<f64>,
+}
+
+impl SemiImplicit {
+    /// `held`: nodes whose species and φ are known (Dirichlet).
+    pub fn new(families: &Families, held: Vec<bool>, phase: &[Phase]) -> SemiImplicit {
+        let species = FamilySystem::new(families, Unknowns::of(held.iter().map(|h| !h)));
+        let poisson = Self::poisson_pattern(families, &held, phase);
+        let n = species.unknowns.len();
+        SemiImplicit {
+            species,
+            poisson,
+            species_solver: DirectSolver::default(),
+            poisson_solver: DirectSolver::default(),
+            poisson_solid: phase.iter().filter(|p| p.is_solid()).count(),
+            held,
+            tolerance: 1e-10,
+            max_iterations: 4,
+            residual: vec![0.0; n],
+            old: Vec::new(),
+        }
+    }
+
+    fn poisson_pattern(families: &Families, held: &[bool], phase: &[Phase]) -> FamilySystem {
+        FamilySystem::new(
+            families,
+            Unknowns::of(held.iter().zip(phase).map(|(h, p)| !h && !p.is_solid())),
+        )
+    }
+
+    pub fn species_unknowns(&self) -> &Unknowns {
+        &self.species.unknowns
+    }
+
+    /// Solves the Poisson equation for φ with the fields' concentrations (φ = 0 in the
+    /// solid, held values kept); `extra` adds to the right side per node. Returns the
+    /// relative residual.
+    pub fn solve_potential(
+        &mut self,
+        op: &NnppOperator,
+        f: &mut NnppFields,
+        extra: &[f64],
+    ) -> Result<f64, SparseError> {
+        let solid = f.phase.iter().filter(|p| p.is_solid()).count();
+        if solid != self.poisson_solid {
+            self.poisson = Self::poisson_pattern(op.families, &self.held, &f.phase);
+            self.poisson_solver.reset();
+            self.poisson_solid = solid;
+        }
+        for (p, phase) in f.potential.iter_mut().zip(&f.phase) {
+            if phase.is_solid() {
+                *p = 0.0;
+            }
+        }
+        let mut rhs = vec![0.0; self.poisson.unknowns.len()];
+        op.poisson_system(&mut self.poisson, f, extra, &mut rhs);
+        let residual = self.poisson_solver.solve(&self.poisson.matrix, &mut rhs)?;
+        for (&i, &v) in self.poisson.unknowns.nodes.iter().zip(&rhs) {
+            f.potential[i as usize] = v;
+        }
+        Ok(residual)
+    }
+
+    /// One implicit step of every species with φ as it is in `f` (solve it first);
+    /// `sources[k]` is species k's linearized reaction per node, evaluated from the old state.
+    pub fn step_species(
+        &mut self,
+        op: &NnppOperator,
+        f: &mut NnppFields,
+        dt: f64,
+        sources: &[Vec<LinearSource>],
+        report: &mut StepReport,
+    ) -> Result<(), SparseError> {
+        report.newton_residual.clear();
+        report.linear_residual.clear();
+        report.iterations.clear();
+        for (k, source) in sources.iter().enumerate() {
+            self.old.clone_from(&f.concentration[k]);
+            op.species_jacobian(&mut self.species, k, f, dt, source);
+            let unknowns = &self.species.unknowns;
+            op.species_residual(unknowns, k, f, &self.old, dt, source, &mut self.residual);
+            let initial = norm(&self.residual);
+            let (mut relative, mut linear, mut iterations) = (0.0_f64, 0.0_f64, 0);
+            while iterations < self.max_iterations {
+                let mut delta: Vec<f64> = self.residual.iter().map(|r| -r).collect();
+                let r = self
+                    .species_solver
+                    .solve(&self.species.matrix, &mut delta)?;
+                linear = linear.max(r);
+                let c = &mut f.concentration[k];
+                for (&i, d) in unknowns.nodes.iter().zip(&delta) {
+                    c[i as usize] += d;
+                }
+                iterations += 1;
+                op.species_residual(unknowns, k, f, &self.old, dt, source, &mut self.residual);
+                relative = if initial > 0.0 {
+                    norm(&self.residual) / initial
+                } else {
+                    0.0
+                };
+                if relative <= self.tolerance {
+                    break;
+                }
+            }
+            report.newton_residual.push(relative);
+            report.linear_residual.push(linear);
+            report.iterations.push(iterations);
+        }
+        Ok(())
+    }
+
+    /// Explicit Euler of every species with the same φ and sources (for comparison and the
+    /// stability tests): C^{n+1} = C^n + Δt (rate + R(C^n)).
+    pub fn explicit_species(
+        &self,
+        op: &NnppOperator,
+        f: &mut NnppFields,
+        dt: f64,
+        sources: &[Vec<LinearSource>],
+    ) {
+        let unknowns = &self.species.unknowns;
+        let updates: Vec<Vec<f64>> = (0..sources.len())
+            .map(|k| {
+                unknowns
+                    .nodes
+                    .iter()
+                    .map(|&i| {
+                        let i = i as usize;
+                        let c = f.concentration[k][i];
+                        c + dt
+                            * (op.species_rate(k, i, f) + sources[k][i][0] + sources[k][i][1] * c)
+                    })
+                    .collect()
+            })
+            .collect();
+        for (k, update) in updates.into_iter().enumerate() {
+            for (&i, v) in unknowns.nodes.iter().zip(update) {
+                f.concentration[k][i as usize] = v;
+            }
+        }
+    }
+}
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
