@@ -9,7 +9,7 @@
 use super::sparse::{DirectSolver, SparseError};
 use crate::adapt::masks::Phase;
 use crate::discretization::Families;
-use crate::scheme::nnpp::{FamilySystem, LinearSource, NnppFields, NnppOperator, Unknowns};
+use crate::scheme::nnpp::{FamilySystem, ImplicitStep, LinearSource, NnppFields, NnppOperator, Unknowns};
 
 /// What one semi-implicit step reports.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -116,7 +116,12 @@ impl SemiImplicit {
             self.old.clone_from(&f.concentration[k]);
             op.species_jacobian(&mut self.species, k, f, dt, source);
             let unknowns = &self.species.unknowns;
-            op.species_residual(unknowns, k, f, &self.old, dt, source, &mut self.residual);
+            let step = ImplicitStep {
+                old: &self.old,
+                dt,
+                sources: source,
+            };
+            op.species_residual(unknowns, k, f, &step, &mut self.residual);
             let initial = norm(&self.residual);
             let (mut relative, mut linear, mut iterations) = (0.0_f64, 0.0_f64, 0);
             while iterations < self.max_iterations {
@@ -130,7 +135,7 @@ impl SemiImplicit {
                     c[i as usize] += d;
                 }
                 iterations += 1;
-                op.species_residual(unknowns, k, f, &self.old, dt, source, &mut self.residual);
+                op.species_residual(unknowns, k, f, &step, &mut self.residual);
                 relative = if initial > 0.0 {
                     norm(&self.residual) / initial
                 } else {

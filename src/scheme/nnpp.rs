@@ -229,6 +229,15 @@ pub struct NnppFields {
 /// A linear source linearized in the implicit species: R = r0 + r1 C_k^{n+1} per node.
 pub type LinearSource = [f64; 2];
 
+/// What the residual (3.11) of one species holds fixed over a step: C^n, Δt and the
+/// linearized sources.
+#[derive(Clone, Copy)]
+pub struct ImplicitStep<'a> {
+    pub old: &'a [f64],
+    pub dt: f64,
+    pub sources: &'a [LinearSource],
+}
+
 /// The discrete operator of one grid: families, bond weights, species laws, conductivity.
 pub struct NnppOperator<'a> {
     pub families: &'a Families,
@@ -291,11 +300,10 @@ impl NnppOperator<'_> {
         unknowns: &Unknowns,
         k: usize,
         f: &NnppFields,
-        old: &[f64],
-        dt: f64,
-        sources: &[LinearSource],
+        step: &ImplicitStep,
         out: &mut [f64],
     ) {
+        let ImplicitStep { old, dt, sources } = *step;
         let c = &f.concentration[k];
         out.par_iter_mut().zip(&unknowns.nodes).for_each(|(o, &i)| {
             let i = i as usize;
