@@ -4,7 +4,8 @@
 /// One per-node field with the fixed color range it is shown in.
 #[derive(Debug, Clone)]
 pub struct NodeField {
-    pub name: &'static str,
+    /// The entity name under `nodes/` (`species/<name>` for an NNPP species).
+    pub name: std::borrow::Cow<'static, str>,
     pub values: Vec<f64>,
     pub range: (f64, f64),
 }

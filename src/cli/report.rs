@@ -55,6 +55,12 @@ pub fn describe(scene: &Scene, info: &SimInfo, steps: Option<u64>) -> String {
             },
             info.frame_every
         ),
+        Physics::NernstPlanck => format!(
+            "{name}: {}D Nernst–Planck–Poisson, {} nodes, {stencil}, Δt = {:.4e} s \
+             (semi-implicit Newton; explicit Euler's bound {:.4e} s), {steps} steps, a frame \
+             every {}",
+            info.dim, info.nodes, info.dt, info.gershgorin_dt, info.frame_every
+        ),
         Physics::ScalarWave => format!(
             "{name}: {}D scalar wave, {} nodes, {stencil}, Δt = {:.4e} s ({} × velocity-Verlet's \
              bound {:.4e} s), {steps} steps, a frame every {}",

@@ -24,7 +24,7 @@ fn piece_of<'a>(frame: &'a Frame, run: &'a str) -> Piece<'a> {
         fields: frame
             .fields
             .iter()
-            .map(|f| (f.name, Values::F64(&f.values)))
+            .map(|f| (f.name.as_ref(), Values::F64(&f.values)))
             .collect(),
         classes: frame
             .classes

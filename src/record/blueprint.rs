@@ -45,6 +45,12 @@ fn roles(scene: &Scene) -> Roles {
             plots.push(("energy", "/metrics/energy/**"));
             "displacement"
         }
+        Physics::NernstPlanck => {
+            masks.push("phase");
+            plots.push(("species totals", "/metrics/species/**"));
+            plots.push(("residuals", "/metrics/residual/**"));
+            "potential"
+        }
         Physics::Corrosion => {
             masks.push("phase");
             plots.push(("volume loss", "/metrics/corrosion/volume_loss"));

@@ -70,7 +70,7 @@ pub(super) fn log_frame(
             field.values.iter().map(|&v| v as f32),
         ));
         let values = rerun::AnyValues::default().with_component_from_data(
-            ComponentIdentifier::try_new(field.name).unwrap_or("value".into()),
+            ComponentIdentifier::try_new(field.name.as_ref()).unwrap_or("value".into()),
             raw,
         );
         let path = format!("nodes/{}", field.name);

@@ -65,8 +65,8 @@ pub(super) fn pulses(
     let scalar = match physics {
         Physics::Diffusion | Physics::Corrosion | Physics::ScalarWave => true,
         Physics::Dynamics => false,
-        Physics::Static if p.initial.pulse.is_empty() => true,
-        Physics::Static => {
+        Physics::Static | Physics::NernstPlanck if p.initial.pulse.is_empty() => true,
+        Physics::Static | Physics::NernstPlanck => {
             return Err(ctx.error(
                 "initial.pulse",
                 "pulses set an initial field: physics = \"diffusion\", \"corrosion\", \
@@ -166,7 +166,7 @@ pub(super) fn absorbing(
     let (wave, bond) = match physics {
         Physics::ScalarWave => (true, false),
         Physics::Dynamics if dim == 2 => (true, true),
-        Physics::Diffusion | Physics::Corrosion => (false, false),
+        Physics::Diffusion | Physics::Corrosion | Physics::NernstPlanck => (false, false),
         Physics::Dynamics => {
             return Err(ctx.error(
                 "absorbing",

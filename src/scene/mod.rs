@@ -1,6 +1,7 @@
 //! Scenes: TOML presets (schema, units, variants) validated into a plain `Scene` in SI units.
 
 mod absorbing;
+pub mod nernst_planck;
 mod state_based;
 pub use state_based::{
     OpeningSpec, SplitRule, StateBasedSpec, check_split_damage, check_split_strain,
@@ -67,6 +68,8 @@ pub struct Scene {
     pub state_based: Option<StateBasedSpec>,
     /// Scalar-wave scenes: χ and the damping d (the kernel is in `diffusion`).
     pub wave: Option<WaveSpec>,
+    /// NNPP scenes: species, Poisson equation, kernels, manufactured reference.
+    pub nernst_planck: Option<nernst_planck::NernstPlanckSpec>,
     /// Gaussian pulses added to the initial scalar field.
     pub initial_pulses: Vec<Pulse>,
     pub precracks: Vec<CrackGeometry>,

@@ -48,6 +48,8 @@ pub struct Preset {
     /// A manufactured solution: gives the body force or source, the values held in
     /// `hold_reference` layers, and the error norm (3.79) reported in frames.
     pub reference: Option<ReferenceSpec>,
+    /// NNPP scenes: the species, the Poisson equation and the kernels.
+    pub nernst_planck: Option<super::nernst_planck::NernstPlanckTable>,
     /// Named overrides merged onto this file, e.g. `[variants.small]`.
     #[serde(default)]
     pub variants: BTreeMap<String, toml::Table>,
@@ -229,6 +231,9 @@ pub enum Physics {
     Corrosion,
     /// The scalar wave (2.37)–(2.40) with damped velocity-Verlet (4.62).
     ScalarWave,
+    /// The nonlocal Nernst–Planck–Poisson system (2.63)–(2.64): several species and a
+    /// potential, the semi-implicit Newton step of §3.1.2.
+    NernstPlanck,
 }
 
 /// Manufactured solutions of seed-004 Examples 1–2 (thesis §3.2.5–3.2.6).

@@ -132,6 +132,7 @@ pub(super) fn validate(
             wave = Some(w);
             (None, Some(kernel))
         }
+        Physics::NernstPlanck => (None, None),
         Physics::Static if dim != 1 => {
             return Err(ctx.error(
                 "physics",
@@ -155,6 +156,16 @@ pub(super) fn validate(
         return Err(ctx.error("precracks", "pre-cracks need physics = \"dynamics\""));
     }
     let hybrid = hybrid(p, ctx, scheme.kind, spacing, horizon)?;
+    let nernst_planck = super::nernst_planck::nernst_planck(p, ctx, dim, horizon)?;
+    if physics == Physics::NernstPlanck
+        && (scheme.kind != SchemeKind::Standard || p.multigrid.is_some() || p.absorbing.is_some())
+    {
+        return Err(ctx.error(
+            "discretization.scheme",
+            "physics = \"nernst-planck\" runs the standard scheme on one grid (multi-grid \
+             NNPP is not built yet), without an absorbing layer",
+        ));
+    }
     if physics == Physics::Corrosion
         && !matches!(scheme.kind, SchemeKind::Standard | SchemeKind::HybridFixed)
     {
@@ -237,7 +248,13 @@ pub(super) fn validate(
         })
         .transpose()
         .map_err(|m| ctx.from_path_message(&m))?;
-    if reference.is_none() && boundary.iter().any(|b| b.condition == Condition::Reference) {
+    let manufactured = nernst_planck
+        .as_ref()
+        .is_some_and(|n| n.manufactured.is_some());
+    if reference.is_none()
+        && !manufactured
+        && boundary.iter().any(|b| b.condition == Condition::Reference)
+    {
         return Err(ctx.error(
             "reference",
             "a `hold_reference` boundary layer needs a [reference] table",
@@ -265,10 +282,13 @@ pub(super) fn validate(
         })
         .collect::<Result<Vec<_>, String>>()
         .map_err(|m| ctx.from_path_message(&m))?;
-    if physics == Physics::Dynamics && !initial_concentration.is_empty() {
+    if matches!(physics, Physics::Dynamics | Physics::NernstPlanck)
+        && !initial_concentration.is_empty()
+    {
         return Err(ctx.error(
             "initial.concentration",
-            "concentrations need physics = \"diffusion\" or \"corrosion\"",
+            "concentrations need physics = \"diffusion\" or \"corrosion\" (NNPP species \
+             take theirs from [[nernst_planck.species]])",
         ));
     }
     let initial_velocity = p
@@ -390,6 +410,7 @@ pub(super) fn validate(
         absorbing,
         state_based,
         wave,
+        nernst_planck,
         initial_pulses,
         seed: d.seed,
         family_radius: d.family_radius,
@@ -509,7 +530,7 @@ fn multigrid(
                 transfer: m.transfer.unwrap_or_default(),
             }
         }
-        Physics::Static | Physics::ScalarWave => {
+        Physics::Static | Physics::ScalarWave | Physics::NernstPlanck => {
             return Err(ctx.error(
                 "multigrid",
                 "two grid levels are available for dynamics, diffusion and corrosion",
@@ -958,7 +979,7 @@ fn boundary_layer(
         }
         if !matches!(
             physics,
-            Physics::Diffusion | Physics::Corrosion | Physics::ScalarWave
+            Physics::Diffusion | Physics::Corrosion | Physics::ScalarWave | Physics::NernstPlanck
         ) {
             return Err(format!(
                 "{path}.hold_value: only diffusion, corrosion and scalar-wave scenes hold a \

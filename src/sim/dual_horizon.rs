@@ -963,12 +963,12 @@ impl Stepper for DualHorizonSimulation {
             positions: self.positions().as_flattened().to_vec(),
             fields: vec![
                 NodeField {
-                    name: "damage",
+                    name: "damage".into(),
                     values: damage,
                     range: (0.0, 1.0),
                 },
                 NodeField {
-                    name: "velocity",
+                    name: "velocity".into(),
                     values: speed,
                     range: (0.0, self.velocity_scale),
                 },

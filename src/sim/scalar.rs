@@ -858,7 +858,8 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             name: match self.scene.physics {
                 Physics::Static | Physics::ScalarWave => "displacement",
                 _ => "concentration",
-            },
+            }
+            .into(),
             values: self.field().to_vec(),
             range: (lowest, amplitude),
         }];
@@ -870,7 +871,7 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             }
             let range = if max_error > 0.0 { max_error } else { 1.0 };
             fields.push(NodeField {
-                name: "error",
+                name: "error".into(),
                 values: error,
                 range: (-range, range),
             });
@@ -883,7 +884,7 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             let top = w.velocity.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
             let range = if top > 0.0 { top } else { 1.0 };
             fields.push(NodeField {
-                name: "velocity",
+                name: "velocity".into(),
                 values: w.velocity.clone(),
                 range: (-range, range),
             });

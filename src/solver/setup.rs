@@ -23,6 +23,8 @@ pub enum Integrator {
     Euler,
     /// One global solve: no step limit.
     Static,
+    /// Semi-implicit (Newton) steps: no step limit, any Δt.
+    Implicit,
 }
 
 impl StableStep {
@@ -44,6 +46,7 @@ impl StableStep {
                                   iteration or Gershgorin discs)"
                 .into(),
             Integrator::Static => "no limit".into(),
+            Integrator::Implicit => "no limit (an implicit step)".into(),
         }
     }
 }
@@ -69,6 +72,10 @@ pub fn clock(scene: &Scene, bound: &StableStep) -> Result<Clock, SceneError> {
                 ));
             }
             dt
+        }
+        StepSize::FractionOfStable(f) if bound.integrator == Integrator::Implicit => {
+            // The fraction refers to explicit Euler's bound, kept in `guaranteed`.
+            f * bound.guaranteed
         }
         StepSize::FractionOfStable(f) => f * bound.sharp,
     };

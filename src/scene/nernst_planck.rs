@@ -1,0 +1,350 @@
+//! `physics = "nernst-planck"` and its `[nernst_planck]` table → the scene's
+//! [`NernstPlanckSpec`]: the species (valence, bond diffusivities by class (2.78), initial and
+//! boundary values), the Poisson equation's micro-conductivity, the kernel exponents q1–q3 of
+//! (2.63)–(2.64), the phase change on C₁ and an optional manufactured reference (thesis §2.4,
+//! §3.1.2; seed-thesis-ch2-3 §1.7, §2.3).
+//!
+//! Boundary layers: `hold_value = φ_b` holds every species at its `boundary` value and φ at
+//! φ_b (Table 3.5's far field: φ = 0); `hold_reference = true` holds the manufactured values.
+//! φ is not solved in the solid (φ = 0 there).
+
+use serde::Deserialize;
+
+use super::error::{ErrorContext, SceneError};
+use super::geometry::{Shape, Solid};
+use super::schema::{Physics, Preset};
+use super::units::Quantity;
+use super::validate::positive;
+use crate::model::nernst_planck::{FARADAY, GAS_CONSTANT, NnppKernel};
+use crate::model::pmb::Influence;
+use crate::scheme::nnpp::SpeciesLaw;
+
+/// Species a scene may carry (the screw has six).
+const MAX_SPECIES: usize = 12;
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NernstPlanckTable {
+    /// T (K).
+    pub temperature: f64,
+    /// σ of the nonlocal Poisson equation (2.64) (S/m).
+    pub conductivity: Quantity,
+    /// q1, q2, q3 of the kernels ω/r^{n+2q} (default 0, 0, 0).
+    #[serde(default)]
+    pub exponents: Option<[f64; 3]>,
+    #[serde(default)]
+    pub influence: Influence,
+    /// The region solid at the start (default: none).
+    pub solid: Option<Shape>,
+    /// A solid node whose C₁ drops below this turns liquid (irreversible; none: no change).
+    pub saturation: Option<f64>,
+    /// The Newton iteration's relative residual target (default 1e-10).
+    pub tolerance: Option<f64>,
+    /// Newton iterations per species and step at most (default 4).
+    pub max_iterations: Option<usize>,
+    pub species: Vec<SpeciesTable>,
+    pub manufactured: Option<ManufacturedTable>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpeciesTable {
+    /// Lower-case letters, digits, `_` or `-`: the entity `nodes/species/<name>`.
+    pub name: String,
+    pub valence: f64,
+    /// D of liquid–liquid bonds (m²/s).
+    pub liquid: Quantity,
+    /// D of interface bonds (default: `liquid`).
+    pub interface: Option<Quantity>,
+    /// D of solid–solid bonds (default 0).
+    pub solid: Option<Quantity>,
+    /// C at the start in the liquid and in the solid (default 0).
+    #[serde(default)]
+    pub initial_liquid: f64,
+    #[serde(default)]
+    pub initial_solid: f64,
+    /// C in `hold_value` layers (default: `initial_liquid`).
+    pub boundary: Option<f64>,
+}
+
+/// A steady manufactured solution in 1D: C_k = A_k + B_k cos(κx), φ = P cos(κx), κ = 2π/λ,
+/// with sources that make it exact for the horizon integrals.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ManufacturedTable {
+    pub wavelength: Quantity,
+    /// P (V).
+    pub potential: Quantity,
+    /// A_k per species.
+    pub means: Vec<f64>,
+    /// B_k per species.
+    pub amplitudes: Vec<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpeciesSpec {
+    pub law: SpeciesLaw,
+    pub initial_liquid: f64,
+    pub initial_solid: f64,
+    pub boundary: f64,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct NernstPlanckSpec {
+    pub temperature: f64,
+    pub conductivity: f64,
+    pub kernel: NnppKernel,
+    pub solid: Option<Solid>,
+    pub saturation: Option<f64>,
+    pub tolerance: f64,
+    pub max_iterations: usize,
+    pub species: Vec<SpeciesSpec>,
+    pub manufactured: Option<Manufactured>,
+}
+
+/// The manufactured solution of a 1D scene with ω = 1 and q1 = q2 = q3 = −1/2, where every
+/// kernel ω/r^{n+2q} is 1 and the horizon integrals of cosines are closed-form:
+/// ∫_{−δ}^{δ} cos(κ(x+ξ)) − cos(κx) dξ = cos(κx) I(κ), I(κ) = 2 sin(κδ)/κ − 2δ.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Manufactured {
+    pub wavenumber: f64,
+    pub potential: f64,
+    pub means: Vec<f64>,
+    pub amplitudes: Vec<f64>,
+}
+
+impl Manufactured {
+    fn integral(&self, wavenumber: f64, horizon: f64) -> f64 {
+        2.0 * (wavenumber * horizon).sin() / wavenumber - 2.0 * horizon
+    }
+
+    pub fn concentration(&self, k: usize, x: f64) -> f64 {
+        self.means[k] + self.amplitudes[k] * (self.wavenumber * x).cos()
+    }
+
+    pub fn phi(&self, x: f64) -> f64 {
+        self.potential * (self.wavenumber * x).cos()
+    }
+
+    /// The source of species k that makes the field steady: minus the exact horizon
+    /// integral of (2.63) with the liquid diffusivity.
+    pub fn species_source(&self, spec: &NernstPlanckSpec, k: usize, x: f64) -> f64 {
+        let c = spec.kernel.constants();
+        let delta = spec.kernel.horizon;
+        let (kx, w) = (self.wavenumber * x, self.wavenumber);
+        let (a, b, p) = (self.means[k], self.amplitudes[k], self.potential);
+        let law = &spec.species[k].law;
+        let zf = law.valence * FARADAY / (GAS_CONSTANT * spec.temperature);
+        let diffusion = c.k1 * b * self.integral(w, delta) * kx.cos();
+        let migration = c.k2
+            * zf
+            * (2.0 * a * p * self.integral(w, delta) * kx.cos()
+                + 0.5 * b * p * self.integral(2.0 * w, delta) * (2.0 * kx).cos());
+        -law.liquid * (diffusion + migration)
+    }
+
+    /// The Poisson source that makes φ exact: −σ K3 ∫(φ' − φ) − F Σ z C.
+    pub fn poisson_source(&self, spec: &NernstPlanckSpec, x: f64) -> f64 {
+        let c = spec.kernel.constants();
+        let kx = self.wavenumber * x;
+        let laplace = c.k3 * self.potential * self.integral(self.wavenumber, spec.kernel.horizon);
+        let charge: f64 = spec
+            .species
+            .iter()
+            .enumerate()
+            .map(|(k, s)| s.law.valence * self.concentration(k, x))
+            .sum();
+        -spec.conductivity * laplace * kx.cos() - FARADAY * charge
+    }
+}
+
+fn species(
+    t: &SpeciesTable,
+    ctx: &ErrorContext,
+    path: &str,
+    taken: &[SpeciesSpec],
+) -> Result<SpeciesSpec, SceneError> {
+    let name_ok = !t.name.is_empty()
+        && t.name
+            .chars()
+            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_' || c == '-');
+    if !name_ok {
+        return Err(ctx.error(
+            &format!("{path}.name"),
+            format!(
+                "`{}`: use lower-case letters, digits, `_` or `-` (it names nodes/species/<name>)",
+                t.name
+            ),
+        ));
+    }
+    if taken.iter().any(|s| s.law.name == t.name) {
+        return Err(ctx.error(
+            &format!("{path}.name"),
+            format!("`{}` is given twice", t.name),
+        ));
+    }
+    if !t.valence.is_finite() {
+        return Err(ctx.error(&format!("{path}.valence"), "must be finite"));
+    }
+    let diffusivity = |field: &str, value: Option<Quantity>, default: f64| {
+        let v = value.map_or(default, Quantity::si);
+        if v.is_finite() && v >= 0.0 {
+            Ok(v)
+        } else {
+            Err(ctx.error(
+                &format!("{path}.{field}"),
+                format!("a diffusivity ≥ 0 in m²/s, got {v}"),
+            ))
+        }
+    };
+    let liquid = positive(ctx, &format!("{path}.liquid"), t.liquid.si())?;
+    let law = SpeciesLaw {
+        name: t.name.clone(),
+        valence: t.valence,
+        liquid,
+        interface: diffusivity("interface", t.interface, liquid)?,
+        solid: diffusivity("solid", t.solid, 0.0)?,
+    };
+    let boundary = t.boundary.unwrap_or(t.initial_liquid);
+    for (field, v) in [
+        ("initial_liquid", t.initial_liquid),
+        ("initial_solid", t.initial_solid),
+        ("boundary", boundary),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(ctx.error(
+                &format!("{path}.{field}"),
+                format!("a concentration ≥ 0, got {v}"),
+            ));
+        }
+    }
+    Ok(SpeciesSpec {
+        law,
+        initial_liquid: t.initial_liquid,
+        initial_solid: t.initial_solid,
+        boundary,
+    })
+}
+
+pub(super) fn nernst_planck(
+    p: &Preset,
+    ctx: &ErrorContext,
+    dim: usize,
+    horizon: f64,
+) -> Result<Option<NernstPlanckSpec>, SceneError> {
+    let table = match (&p.nernst_planck, p.physics) {
+        (None, Physics::NernstPlanck) => {
+            return Err(ctx.error(
+                "nernst_planck",
+                "physics = \"nernst-planck\" needs a [nernst_planck] table with its species",
+            ));
+        }
+        (None, _) => return Ok(None),
+        (Some(_), physics) if physics != Physics::NernstPlanck => {
+            return Err(ctx.error(
+                "nernst_planck",
+                "belongs to physics = \"nernst-planck\"",
+            ));
+        }
+        (Some(t), _) => t,
+    };
+    let temperature = positive(ctx, "nernst_planck.temperature", table.temperature)?;
+    let conductivity = positive(ctx, "nernst_planck.conductivity", table.conductivity.si())?;
+    let exponents = table.exponents.unwrap_or([0.0; 3]);
+    let kernel = NnppKernel::new(dim, table.influence, horizon, exponents)
+        .map_err(|m| ctx.error("nernst_planck.exponents", m))?;
+    if table.species.is_empty() || table.species.len() > MAX_SPECIES {
+        return Err(ctx.error(
+            "nernst_planck.species",
+            format!(
+                "give 1 to {MAX_SPECIES} [[nernst_planck.species]] tables, got {}",
+                table.species.len()
+            ),
+        ));
+    }
+    let mut list = Vec::with_capacity(table.species.len());
+    for (k, t) in table.species.iter().enumerate() {
+        let s = species(t, ctx, &format!("nernst_planck.species[{k}]"), &list)?;
+        list.push(s);
+    }
+    let solid = table
+        .solid
+        .as_ref()
+        .map(|s| s.to_solid(dim, "nernst_planck.solid"))
+        .transpose()
+        .map_err(|m| ctx.from_path_message(&m))?;
+    if let Some(s) = table.saturation
+        && !(s.is_finite() && s >= 0.0)
+    {
+        return Err(ctx.error(
+            "nernst_planck.saturation",
+            format!("a concentration ≥ 0, got {s}"),
+        ));
+    }
+    let tolerance = table.tolerance.unwrap_or(1e-10);
+    if !(tolerance > 0.0 && tolerance < 1.0) {
+        return Err(ctx.error(
+            "nernst_planck.tolerance",
+            format!("a relative residual in (0, 1), got {tolerance}"),
+        ));
+    }
+    let max_iterations = table.max_iterations.unwrap_or(4);
+    if !(1..=100).contains(&max_iterations) {
+        return Err(ctx.error(
+            "nernst_planck.max_iterations",
+            format!("1 to 100 Newton iterations, got {max_iterations}"),
+        ));
+    }
+    let manufactured = table
+        .manufactured
+        .as_ref()
+        .map(|m| manufactured(m, ctx, dim, &kernel, list.len()))
+        .transpose()?;
+    Ok(Some(NernstPlanckSpec {
+        temperature,
+        conductivity,
+        kernel,
+        solid,
+        saturation: table.saturation,
+        tolerance,
+        max_iterations,
+        species: list,
+        manufactured,
+    }))
+}
+
+fn manufactured(
+    m: &ManufacturedTable,
+    ctx: &ErrorContext,
+    dim: usize,
+    kernel: &NnppKernel,
+    species: usize,
+) -> Result<Manufactured, SceneError> {
+    let field = "nernst_planck.manufactured";
+    if dim != 1 || kernel.influence != Influence::Constant || kernel.exponents != [-0.5; 3] {
+        return Err(ctx.error(
+            field,
+            "the closed-form integrals need dimension = 1, influence = \"constant\" and \
+             exponents = [-0.5, -0.5, -0.5] (the kernel ω/r^{n+2q} = 1)",
+        ));
+    }
+    for (name, v) in [("means", &m.means), ("amplitudes", &m.amplitudes)] {
+        if v.len() != species || v.iter().any(|x| !x.is_finite()) {
+            return Err(ctx.error(
+                &format!("{field}.{name}"),
+                format!("one finite value per species ({species}), got {v:?}"),
+            ));
+        }
+    }
+    let wavelength = positive(ctx, &format!("{field}.wavelength"), m.wavelength.si())?;
+    let potential = m.potential.si();
+    if !potential.is_finite() {
+        return Err(ctx.error(&format!("{field}.potential"), "must be finite"));
+    }
+    Ok(Manufactured {
+        wavenumber: std::f64::consts::TAU / wavelength,
+        potential,
+        means: m.means.clone(),
+        amplitudes: m.amplitudes.clone(),
+    })
+}
