@@ -58,6 +58,10 @@ const PRESETS: &[(&str, &str)] = &[
         "plate-with-hole",
         include_str!("../../presets/plate-with-hole.toml"),
     ),
+    (
+        "nnpp-1d-manufactured",
+        include_str!("../../presets/nnpp-1d-manufactured.toml"),
+    ),
     ("screw-3d", include_str!("../../presets/screw-3d.toml")),
     (
         "static-1d-manufactured",

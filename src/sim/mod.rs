@@ -4,12 +4,14 @@
 
 pub mod dual_horizon;
 pub mod dynamics;
+pub mod nernst_planck;
 mod far_field;
 pub mod scalar;
 mod unbounded;
 
 pub use dual_horizon::DualHorizonSimulation;
 pub use dynamics::DynamicSimulation;
+pub use nernst_planck::NernstPlanckSimulation;
 pub use scalar::ScalarSimulation;
 
 use crate::scene::{InitialVelocity, Physics, Scene, SceneError};
@@ -29,6 +31,9 @@ pub fn build(scene: &Scene) -> Result<Box<dyn Stepper>, SceneError> {
         (Physics::Dynamics, 1) => boxed(DynamicSimulation::<1>::new(scene)),
         (Physics::Dynamics, 2) => boxed(DynamicSimulation::<2>::new(scene)),
         (Physics::Dynamics, _) => boxed(DynamicSimulation::<3>::new(scene)),
+        (Physics::NernstPlanck, 1) => boxed(NernstPlanckSimulation::<1>::new(scene)),
+        (Physics::NernstPlanck, 2) => boxed(NernstPlanckSimulation::<2>::new(scene)),
+        (Physics::NernstPlanck, _) => boxed(NernstPlanckSimulation::<3>::new(scene)),
         (_, 1) => boxed(ScalarSimulation::<1>::new(scene)),
         (_, 2) => boxed(ScalarSimulation::<2>::new(scene)),
         (_, _) => boxed(ScalarSimulation::<3>::new(scene)),

@@ -1,0 +1,442 @@
+//! The NNPP simulation (thesis §2.4, §3.1.2; seed-thesis-ch2-3 §1.7, §2.3): species and
+//! potential on one standard-scheme grid, advanced by the semi-implicit step of
+//! `integrate::newton` (Poisson for φ with C^n, then each species by the frozen-Jacobian
+//! Newton iteration), with the phase change on C₁ and an optional manufactured reference.
+//! Reactions (3.98)–(3.103) are not built yet: the sources are the manufactured ones or zero.
+
+use crate::adapt::masks::Phase;
+use crate::discretization::Discretization;
+use crate::frame::{Frame, NodeField};
+use crate::integrate::newton::{SemiImplicit, StepReport};
+use crate::scene::nernst_planck::NernstPlanckSpec;
+use crate::scene::{Condition, Scene, SceneError};
+use crate::scheme::nnpp::{LinearSource, NnppBonds, NnppFields, NnppOperator, SpeciesLaw};
+use crate::solver::{
+    Clock, Integrator, Lap, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
+};
+
+const STAGES: &[&str] = &["poisson", "species", "phase_change"];
+const POISSON: usize = 0;
+const SPECIES: usize = 1;
+const PHASE_CHANGE: usize = 2;
+
+/// The colour range of φ when no manufactured amplitude sets it (V).
+const DEFAULT_POTENTIAL_RANGE: f64 = 0.1;
+
+pub struct NernstPlanckSimulation<const D: usize> {
+    spec: NernstPlanckSpec,
+    discretization: Discretization<D>,
+    bonds: NnppBonds,
+    laws: Vec<SpeciesLaw>,
+    fields: NnppFields,
+    solver: SemiImplicit,
+    sources: Vec<Vec<LinearSource>>,
+    poisson_source: Vec<f64>,
+    report: StepReport,
+    initial_totals: Vec<f64>,
+    species_ranges: Vec<f64>,
+    potential_range: f64,
+    run: RunState,
+    events: Vec<String>,
+}
+
+impl<const D: usize> NernstPlanckSimulation<D> {
+    pub fn new(scene: &Scene) -> Result<Self, SceneError> {
+        let Some(spec) = scene.nernst_planck.clone() else {
+            return Err(scene.error("nernst_planck", "the scene has no [nernst_planck] table"));
+        };
+        let discretization = Discretization::<D>::of_scene(scene)?;
+        let n = discretization.len();
+        let positions = discretization.nodes.reference();
+        let volumes = discretization.nodes.volumes();
+        let phase: Vec<Phase> = positions
+            .iter()
+            .map(|x| match &spec.solid {
+                Some(s) if s.contains(x, 1e-12 * scene.spacing) => Phase::Solid,
+                _ => Phase::Liquid,
+            })
+            .collect();
+        let manufactured = spec.manufactured.as_ref();
+        let mut concentration: Vec<Vec<f64>> = spec
+            .species
+            .iter()
+            .map(|s| {
+                phase
+                    .iter()
+                    .map(|p| {
+                        if p.is_solid() {
+                            s.initial_solid
+                        } else {
+                            s.initial_liquid
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut potential = vec![0.0; n];
+        let mut held = vec![false; n];
+        for (layer, nodes) in scene.boundary.iter().zip(&discretization.layers) {
+            for &i in nodes {
+                let i = i as usize;
+                match (layer.condition, manufactured) {
+                    (Condition::Value, _) => {
+                        for (c, s) in concentration.iter_mut().zip(&spec.species) {
+                            c[i] = s.boundary;
+                        }
+                        potential[i] = layer.value.first().copied().unwrap_or(0.0);
+                    }
+                    (Condition::Reference, Some(m)) => {
+                        for (k, c) in concentration.iter_mut().enumerate() {
+                            c[i] = m.concentration(k, positions[i][0]);
+                        }
+                        potential[i] = m.phi(positions[i][0]);
+                    }
+                    _ => continue,
+                }
+                held[i] = true;
+            }
+        }
+        if held.iter().all(|&h| h) {
+            return Err(scene.error(
+                "boundary",
+                "the held layers cover every node: nothing is left to solve",
+            ));
+        }
+        let any_dirichlet = held.iter().zip(&phase).any(|(h, p)| *h || p.is_solid());
+        if !any_dirichlet {
+            return Err(scene.error(
+                "boundary",
+                "φ needs a known value somewhere: hold a layer (`hold_value = 0.0`) or give a \
+                 solid region (φ = 0 there)",
+            ));
+        }
+        let bonds = NnppBonds::new(
+            &spec.kernel,
+            &discretization.families,
+            volumes,
+            &discretization.quadrature,
+            spec.temperature,
+        );
+        let laws: Vec<SpeciesLaw> = spec.species.iter().map(|s| s.law.clone()).collect();
+        let sources: Vec<Vec<LinearSource>> = (0..laws.len())
+            .map(|k| {
+                positions
+                    .iter()
+                    .map(|x| [manufactured.map_or(0.0, |m| m.species_source(&spec, k, x[0])), 0.0])
+                    .collect()
+            })
+            .collect();
+        let poisson_source = positions
+            .iter()
+            .map(|x| manufactured.map_or(0.0, |m| m.poisson_source(&spec, x[0])))
+            .collect();
+        let mut solver = SemiImplicit::new(&discretization.families, held, &phase);
+        solver.tolerance = spec.tolerance;
+        solver.max_iterations = spec.max_iterations;
+        let fields = NnppFields {
+            concentration,
+            potential,
+            phase,
+        };
+        let stable = StableStep {
+            sharp: f64::INFINITY,
+            guaranteed: explicit_bound(&discretization, &bonds, &laws, &fields),
+            integrator: Integrator::Implicit,
+        };
+        let run = RunState::new(scene, stable, STAGES)?;
+        let initial_totals = totals(&fields, volumes);
+        let species_ranges = fields
+            .concentration
+            .iter()
+            .enumerate()
+            .map(|(k, c)| {
+                let exact = manufactured.map_or(0.0, |m| m.means[k] + m.amplitudes[k].abs());
+                c.iter().fold(exact, |a, v| a.max(*v)).max(f64::MIN_POSITIVE)
+            })
+            .collect();
+        let potential_range = manufactured.map_or(DEFAULT_POTENTIAL_RANGE, |m| {
+            m.potential.abs().max(f64::MIN_POSITIVE)
+        });
+        Ok(NernstPlanckSimulation {
+            spec,
+            discretization,
+            bonds,
+            laws,
+            fields,
+            solver,
+            sources,
+            poisson_source,
+            report: StepReport::default(),
+            initial_totals,
+            species_ranges,
+            potential_range,
+            run,
+            events: Vec::new(),
+        })
+    }
+
+    /// Relative ℓ² errors against the manufactured solution: per species, then φ.
+    pub fn errors(&self) -> Option<Vec<f64>> {
+        let m = self.spec.manufactured.as_ref()?;
+        let x: Vec<f64> = self.discretization.nodes.reference().iter().map(|p| p[0]).collect();
+        let relative = |values: &[f64], exact: &dyn Fn(f64) -> f64| {
+            let (mut e, mut r) = (0.0, 0.0);
+            for (v, &xi) in values.iter().zip(&x) {
+                let ex = exact(xi);
+                e += (v - ex) * (v - ex);
+                r += ex * ex;
+            }
+            (e / r.max(f64::MIN_POSITIVE)).sqrt()
+        };
+        let mut out: Vec<f64> = (0..self.laws.len())
+            .map(|k| relative(&self.fields.concentration[k], &|xi| m.concentration(k, xi)))
+            .collect();
+        out.push(relative(&self.fields.potential, &|xi| m.phi(xi)));
+        Some(out)
+    }
+
+    pub fn fields(&self) -> &NnppFields {
+        &self.fields
+    }
+
+    pub fn report(&self) -> &StepReport {
+        &self.report
+    }
+
+    /// Solid nodes whose C₁ fell below the saturation turn liquid (irreversible).
+    fn change_phases(&mut self) {
+        let Some(saturation) = self.spec.saturation else {
+            return;
+        };
+        let c1 = &self.fields.concentration[0];
+        let mut changed = 0;
+        for (p, &c) in self.fields.phase.iter_mut().zip(c1) {
+            if p.is_solid() && c < saturation {
+                *p = Phase::Liquid;
+                changed += 1;
+            }
+        }
+        if changed > 0 {
+            self.events
+                .push(format!("{changed} nodes turned liquid (C₁ < {saturation:e})"));
+        }
+    }
+}
+
+/// Explicit Euler's Gershgorin bound of the diffusion part, 2 / max_i Σ_j 2 D g1 (for the
+/// report: the implicit step has no limit).
+fn explicit_bound<const D: usize>(
+    d: &Discretization<D>,
+    bonds: &NnppBonds,
+    laws: &[SpeciesLaw],
+    f: &NnppFields,
+) -> f64 {
+    let families = &d.families;
+    let largest = (0..families.node_count())
+        .flat_map(|i| {
+            laws.iter().map(move |law| {
+                families
+                    .range(i)
+                    .map(|b| {
+                        let j = families.neighbors[b] as usize;
+                        2.0 * law.diffusivity(f.phase[i], f.phase[j]) * bonds.diffusion[b]
+                    })
+                    .sum::<f64>()
+            })
+        })
+        .fold(0.0, f64::max);
+    if largest > 0.0 {
+        2.0 / largest
+    } else {
+        f64::INFINITY
+    }
+}
+
+fn totals(f: &NnppFields, volumes: &[f64]) -> Vec<f64> {
+    f.concentration
+        .iter()
+        .map(|c| c.iter().zip(volumes).map(|(c, v)| c * v).sum())
+        .collect()
+}
+
+impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
+    fn step(&mut self) -> Result<(), SimError> {
+        let mut lap = Lap::start();
+        let dt = self.run.clock.dt();
+        // The operator borrows self's grid and bonds; the fields and solver are disjoint.
+        let op = NnppOperator {
+            families: &self.discretization.families,
+            bonds: &self.bonds,
+            species: &self.laws,
+            conductivity: self.spec.conductivity,
+        };
+        self.report.poisson_residual = self
+            .solver
+            .solve_potential(&op, &mut self.fields, &self.poisson_source)
+            .map_err(|e| SimError::Solve(format!("Poisson: {e}")))?;
+        lap.charge(&mut self.run.stages, POISSON);
+        self.solver
+            .step_species(&op, &mut self.fields, dt, &self.sources, &mut self.report)
+            .map_err(|e| SimError::Solve(format!("species: {e}")))?;
+        lap.charge(&mut self.run.stages, SPECIES);
+        self.change_phases();
+        lap.charge(&mut self.run.stages, PHASE_CHANGE);
+        self.run.clock.advance();
+        let max_value = self
+            .fields
+            .concentration
+            .iter()
+            .flatten()
+            .fold(0.0_f64, |a, c| if c.is_finite() { a.max(c.abs()) } else { f64::NAN });
+        if !max_value.is_finite() {
+            return Err(SimError::Diverged {
+                step: self.run.clock.step(),
+                time: self.run.clock.time(),
+                max_value,
+                dt,
+                stable_dt: self.run.stable.sharp,
+            });
+        }
+        Ok(())
+    }
+
+    fn frame(&mut self) -> Frame {
+        let positions: Vec<f64> = self
+            .discretization
+            .nodes
+            .reference()
+            .iter()
+            .flat_map(|x| x.iter().copied())
+            .collect();
+        let mut fields: Vec<NodeField> = self
+            .laws
+            .iter()
+            .zip(&self.fields.concentration)
+            .zip(&self.species_ranges)
+            .map(|((law, c), &range)| NodeField {
+                name: format!("species/{}", law.name).into(),
+                values: c.clone(),
+                range: (0.0, range),
+            })
+            .collect();
+        fields.push(NodeField {
+            name: "potential".into(),
+            values: self.fields.potential.clone(),
+            range: (-self.potential_range, self.potential_range),
+        });
+        let volumes = self.discretization.nodes.volumes();
+        let mut scalars = vec![(
+            "residual/poisson".to_string(),
+            self.report.poisson_residual,
+        )];
+        for (k, (law, total)) in self
+            .laws
+            .iter()
+            .zip(totals(&self.fields, volumes))
+            .enumerate()
+        {
+            let initial = self.initial_totals[k];
+            scalars.push((format!("species/{}/total", law.name), total));
+            if initial != 0.0 {
+                scalars.push((
+                    format!("species/{}/total_drift", law.name),
+                    (total - initial) / initial,
+                ));
+            }
+            if let Some(r) = self.report.newton_residual.get(k) {
+                scalars.push((format!("residual/newton/{}", law.name), *r));
+                scalars.push((
+                    format!("residual/linear/{}", law.name),
+                    self.report.linear_residual[k],
+                ));
+                scalars.push((
+                    format!("newton/iterations/{}", law.name),
+                    self.report.iterations[k] as f64,
+                ));
+            }
+        }
+        if let Some(errors) = self.errors() {
+            for (law, e) in self.laws.iter().zip(&errors) {
+                scalars.push((format!("error/relative_l2/{}", law.name), *e));
+            }
+            scalars.push(("error/relative_l2/potential".into(), errors[self.laws.len()]));
+        }
+        scalars.extend(self.run.timing_scalars());
+        Frame {
+            step: self.run.clock.step(),
+            time: self.run.clock.time(),
+            dim: D,
+            positions,
+            fields,
+            classes: vec![Phase::field(&self.fields.phase)],
+            events: std::mem::take(&mut self.events),
+            scalars,
+            radii: Vec::new(),
+        }
+    }
+
+    fn info(&self) -> SimInfo {
+        let bonds = self.discretization.families.neighbors.len();
+        self.run.info(Size::of_bonds(
+            D,
+            self.discretization.len(),
+            bonds,
+            // Three bond weights and the family's neighbour index and length.
+            3.0 * 8.0 + 4.0 + 8.0,
+        ))
+    }
+
+    fn run(&self) -> &RunState {
+        &self.run
+    }
+
+    fn run_mut(&mut self) -> &mut RunState {
+        &mut self.run
+    }
+
+    fn save_state(&self) -> State {
+        let mut state = State::default();
+        self.run.clock.save(&mut state);
+        for (law, c) in self.laws.iter().zip(&self.fields.concentration) {
+            state.put_f64(&format!("species/{}", law.name), c.clone());
+        }
+        state.put_f64("potential", self.fields.potential.clone());
+        state.put_u8(
+            "phase",
+            self.fields.phase.iter().map(|&p| p as u8).collect(),
+        );
+        state
+    }
+
+    fn restore_state(&mut self, state: &State) -> Result<(), String> {
+        let n = self.discretization.len();
+        let clock = Clock::restore(state)?;
+        let mut concentration = Vec::with_capacity(self.laws.len());
+        for law in &self.laws {
+            concentration.push(state.f64(&format!("species/{}", law.name), n)?.to_vec());
+        }
+        let potential = state.f64("potential", n)?.to_vec();
+        let phase = state
+            .u8("phase", n)?
+            .iter()
+            .enumerate()
+            .map(|(i, &p)| match p {
+                0 => Ok(Phase::Liquid),
+                1 => Ok(Phase::Solid),
+                _ => Err(format!("phase: node {i} has no phase {p}")),
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        self.fields = NnppFields {
+            concentration,
+            potential,
+            phase,
+        };
+        self.run.clock = clock;
+        Ok(())
+    }
+
+    fn relative_error(&self) -> Option<f64> {
+        self.errors()
+            .map(|e| e.into_iter().fold(0.0, f64::max))
+    }
+}
