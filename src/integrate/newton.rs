@@ -9,7 +9,9 @@
 use super::sparse::{DirectSolver, SparseError};
 use crate::adapt::masks::Phase;
 use crate::discretization::Families;
-use crate::scheme::nnpp::{FamilySystem, ImplicitStep, LinearSource, NnppFields, NnppOperator, Unknowns};
+use crate::scheme::nnpp::{
+    FamilySystem, ImplicitStep, LinearSource, NnppFields, NnppOperator, Unknowns,
+};
 
 /// What one semi-implicit step reports.
 #[derive(Debug, Clone, Default, PartialEq)]

@@ -241,10 +241,7 @@ pub(super) fn nernst_planck(
         }
         (None, _) => return Ok(None),
         (Some(_), physics) if physics != Physics::NernstPlanck => {
-            return Err(ctx.error(
-                "nernst_planck",
-                "belongs to physics = \"nernst-planck\"",
-            ));
+            return Err(ctx.error("nernst_planck", "belongs to physics = \"nernst-planck\""));
         }
         (Some(t), _) => t,
     };

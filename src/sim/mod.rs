@@ -4,8 +4,8 @@
 
 pub mod dual_horizon;
 pub mod dynamics;
-pub mod nernst_planck;
 mod far_field;
+pub mod nernst_planck;
 pub mod scalar;
 mod unbounded;
 

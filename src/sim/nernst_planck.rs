@@ -122,7 +122,12 @@ impl<const D: usize> NernstPlanckSimulation<D> {
             .map(|k| {
                 positions
                     .iter()
-                    .map(|x| [manufactured.map_or(0.0, |m| m.species_source(&spec, k, x[0])), 0.0])
+                    .map(|x| {
+                        [
+                            manufactured.map_or(0.0, |m| m.species_source(&spec, k, x[0])),
+                            0.0,
+                        ]
+                    })
                     .collect()
             })
             .collect();
@@ -151,7 +156,9 @@ impl<const D: usize> NernstPlanckSimulation<D> {
             .enumerate()
             .map(|(k, c)| {
                 let exact = manufactured.map_or(0.0, |m| m.means[k] + m.amplitudes[k].abs());
-                c.iter().fold(exact, |a, v| a.max(*v)).max(f64::MIN_POSITIVE)
+                c.iter()
+                    .fold(exact, |a, v| a.max(*v))
+                    .max(f64::MIN_POSITIVE)
             })
             .collect();
         let potential_range = manufactured.map_or(DEFAULT_POTENTIAL_RANGE, |m| {
@@ -178,7 +185,13 @@ impl<const D: usize> NernstPlanckSimulation<D> {
     /// Relative ℓ² errors against the manufactured solution: per species, then φ.
     pub fn errors(&self) -> Option<Vec<f64>> {
         let m = self.spec.manufactured.as_ref()?;
-        let x: Vec<f64> = self.discretization.nodes.reference().iter().map(|p| p[0]).collect();
+        let x: Vec<f64> = self
+            .discretization
+            .nodes
+            .reference()
+            .iter()
+            .map(|p| p[0])
+            .collect();
         let relative = |values: &[f64], exact: &dyn Fn(f64) -> f64| {
             let (mut e, mut r) = (0.0, 0.0);
             for (v, &xi) in values.iter().zip(&x) {
@@ -217,8 +230,9 @@ impl<const D: usize> NernstPlanckSimulation<D> {
             }
         }
         if changed > 0 {
-            self.events
-                .push(format!("{changed} nodes turned liquid (C₁ < {saturation:e})"));
+            self.events.push(format!(
+                "{changed} nodes turned liquid (C₁ < {saturation:e})"
+            ));
         }
     }
 }
@@ -287,7 +301,13 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
             .concentration
             .iter()
             .flatten()
-            .fold(0.0_f64, |a, c| if c.is_finite() { a.max(c.abs()) } else { f64::NAN });
+            .fold(0.0_f64, |a, c| {
+                if c.is_finite() {
+                    a.max(c.abs())
+                } else {
+                    f64::NAN
+                }
+            });
         if !max_value.is_finite() {
             return Err(SimError::Diverged {
                 step: self.run.clock.step(),
@@ -325,10 +345,7 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
             range: (-self.potential_range, self.potential_range),
         });
         let volumes = self.discretization.nodes.volumes();
-        let mut scalars = vec![(
-            "residual/poisson".to_string(),
-            self.report.poisson_residual,
-        )];
+        let mut scalars = vec![("residual/poisson".to_string(), self.report.poisson_residual)];
         for (k, (law, total)) in self
             .laws
             .iter()
@@ -359,7 +376,10 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
             for (law, e) in self.laws.iter().zip(&errors) {
                 scalars.push((format!("error/relative_l2/{}", law.name), *e));
             }
-            scalars.push(("error/relative_l2/potential".into(), errors[self.laws.len()]));
+            scalars.push((
+                "error/relative_l2/potential".into(),
+                errors[self.laws.len()],
+            ));
         }
         scalars.extend(self.run.timing_scalars());
         Frame {
@@ -436,7 +456,6 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
     }
 
     fn relative_error(&self) -> Option<f64> {
-        self.errors()
-            .map(|e| e.into_iter().fold(0.0, f64::max))
+        self.errors().map(|e| e.into_iter().fold(0.0, f64::max))
     }
 }

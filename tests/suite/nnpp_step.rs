@@ -82,7 +82,13 @@ impl Line {
             ],
             potential: vec![0.0; NODES],
             phase: (0..NODES)
-                .map(|i| if i < SOLID { Phase::Solid } else { Phase::Liquid })
+                .map(|i| {
+                    if i < SOLID {
+                        Phase::Solid
+                    } else {
+                        Phase::Liquid
+                    }
+                })
                 .collect(),
         }
     }
@@ -129,7 +135,9 @@ fn step(
     let op = line.operator();
     let extra = vec![0.0; NODES];
     let mut report = StepReport {
-        poisson_residual: solver.solve_potential(&op, f, &extra).expect("Poisson solve"),
+        poisson_residual: solver
+            .solve_potential(&op, f, &extra)
+            .expect("Poisson solve"),
         ..StepReport::default()
     };
     assert!(
@@ -175,7 +183,10 @@ fn species_totals_are_conserved_with_electromigration() {
         "the potential must matter (z F φ / R T of order one): max |φ| = {potential:e} V"
     );
     assert!(moved > 1e-3, "the species must move: {moved:e}");
-    assert!(f.potential[..SOLID].iter().all(|&p| p == 0.0), "φ = 0 in the solid");
+    assert!(
+        f.potential[..SOLID].iter().all(|&p| p == 0.0),
+        "φ = 0 in the solid"
+    );
     for (k, (a, b)) in before.iter().zip(line.totals(&f)).enumerate() {
         let drift = ((b - a) / a).abs();
         eprintln!("species {k}: Σ C V drift {drift:e}, max |φ| {potential:e} V");
@@ -239,7 +250,10 @@ fn implicit_step_is_bounded_at_three_hours_where_explicit_diverges() {
     let line = Line::new();
     let start = line.fields();
     let dt = 3.0 * 3600.0;
-    assert!(dt > 100.0 * line.explicit_bound(&start), "the test needs a stiff step");
+    assert!(
+        dt > 100.0 * line.explicit_bound(&start),
+        "the test needs a stiff step"
+    );
     let sources = no_sources(2);
     let initial_max = start
         .concentration
@@ -277,9 +291,17 @@ fn implicit_step_is_bounded_at_three_hours_where_explicit_diverges() {
         largest.is_finite() && smallest >= 0.0,
         "implicit: C in [{smallest:e}, {largest:e}]"
     );
-    for (k, (a, b)) in line.totals(&start).iter().zip(line.totals(&implicit)).enumerate() {
+    for (k, (a, b)) in line
+        .totals(&start)
+        .iter()
+        .zip(line.totals(&implicit))
+        .enumerate()
+    {
         let drift = ((b - a) / a).abs();
-        assert!(drift < 1e-12, "species {k}: Σ C V drifted by {drift:e} at Δt = 3 h");
+        assert!(
+            drift < 1e-12,
+            "species {k}: Σ C V drifted by {drift:e} at Δt = 3 h"
+        );
     }
     eprintln!("Δt = 3 h: implicit max |C| {largest:e} (start {initial_max:e})");
     let explicit = run(false);
@@ -298,7 +320,9 @@ fn implicit_step_is_bounded_at_three_hours_where_explicit_diverges() {
 fn linear_potential_between_held_ends_is_reproduced() {
     let line = Line::new();
     let layer = 3;
-    let held: Vec<bool> = (0..NODES).map(|i| i < layer || i >= NODES - layer).collect();
+    let held: Vec<bool> = (0..NODES)
+        .map(|i| i < layer || i >= NODES - layer)
+        .collect();
     let exact = |i: usize| 0.1 - 0.25 * i as f64 * SPACING / (NODES as f64 * SPACING);
     let mut f = NnppFields {
         // Neutral: z1 C1 + z2 C2 = 0.
