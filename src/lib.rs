@@ -4,7 +4,8 @@
 //! per-node store) → `scheme` operators with `model` laws → `adapt` (changes between steps) →
 //! `sim` simulations on the `solver` contract (clock, stages, `Stepper`) → `frame` snapshots →
 //! sinks (`record` for Rerun) → `control`, `panel`, the CLI. The solver core knows nothing of
-//! Rerun or user interfaces. Papers are cited by the short ids of `REFERENCES.md`.
+//! Rerun or user interfaces; `sparse` (linear systems) imports none of it. Papers are cited by
+//! the short ids of `REFERENCES.md`.
 
 pub mod absorb;
 pub mod adapt;
@@ -27,3 +28,4 @@ pub mod scene;
 pub mod scheme;
 pub mod sim;
 pub mod solver;
+pub mod sparse;

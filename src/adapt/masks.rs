@@ -63,14 +63,8 @@ impl RowMask for SchemeClass {
     }
 }
 
-/// The phase of a node of a corrosion scene (thesis (2.79)).
-#[repr(u8)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
-pub enum Phase {
-    #[default]
-    Liquid = 0,
-    Solid = 1,
-}
+/// The phase of a node (defined with the laws that read it, `model::corrosion`).
+pub use crate::model::corrosion::Phase;
 
 impl Phase {
     /// The `nodes/phase` classes.
@@ -78,14 +72,6 @@ impl Phase {
         (Phase::Liquid as u16, "liquid", [107, 174, 214]),
         (Phase::Solid as u16, "solid", [150, 150, 150]),
     ];
-
-    pub fn id(self) -> u16 {
-        self as u16
-    }
-
-    pub fn is_solid(self) -> bool {
-        self == Phase::Solid
-    }
 
     pub fn field(phase: &[Phase]) -> ClassField {
         ClassField {

@@ -3,7 +3,6 @@
 pub mod adr;
 pub mod linear;
 pub mod newton;
-pub mod sparse;
 pub mod stability;
 pub mod verlet;
 

@@ -6,12 +6,12 @@
 //! exact up to the linear solve; the loop runs until the relative residual is below the
 //! tolerance or the iteration cap is reached (reported either way).
 
-use super::sparse::{DirectSolver, SparseError};
-use crate::adapt::masks::Phase;
 use crate::discretization::Families;
+use crate::model::corrosion::Phase;
 use crate::scheme::nnpp::{
     FamilySystem, ImplicitStep, LinearSource, NnppFields, NnppOperator, Unknowns,
 };
+use crate::sparse::{DirectSolver, SparseError};
 
 /// What one semi-implicit step reports.
 #[derive(Debug, Clone, Default, PartialEq)]

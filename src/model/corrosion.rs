@@ -5,6 +5,25 @@
 //! reading of (2.79)). The law gives the bond diffusivities; the scheme does the sum (`scheme`) and
 //! the phase change runs between steps (`adapt::phase`).
 
+/// The phase of a node of a corrosion or Nernst–Planck scene (thesis (2.79)).
+#[repr(u8)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum Phase {
+    #[default]
+    Liquid = 0,
+    Solid = 1,
+}
+
+impl Phase {
+    pub fn id(self) -> u16 {
+        self as u16
+    }
+
+    pub fn is_solid(self) -> bool {
+        self == Phase::Solid
+    }
+}
+
 /// κ_liq, κ_int and C_sat of a corrosion scene.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CorrosionLaw {

@@ -13,8 +13,34 @@
 //! ([derived] in the note: the thesis calls K3 "analogous" and omits it). In 3D with ω ≡ 1 this
 //! is K1 = 3(1 − q1)/(π δ^{2−2q1}), the note's closed form.
 
+use super::corrosion::Phase;
 use super::diffusion;
 use super::pmb::{Influence, influence};
+
+/// One species: its name, valence z_k and bond diffusivities by class (m²/s).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpeciesLaw {
+    pub name: String,
+    pub valence: f64,
+    /// D_{k,l} of liquid–liquid bonds.
+    pub liquid: f64,
+    /// D_{k,int} of interface bonds.
+    pub interface: f64,
+    /// D_{k,s} of solid–solid bonds.
+    pub solid: f64,
+}
+
+impl SpeciesLaw {
+    /// D_{k,ij} of (2.78).
+    #[inline(always)]
+    pub fn diffusivity(&self, a: Phase, b: Phase) -> f64 {
+        match (a.is_solid(), b.is_solid()) {
+            (false, false) => self.liquid,
+            (true, true) => self.solid,
+            _ => self.interface,
+        }
+    }
+}
 
 /// Faraday's constant F, C/mol (CODATA 2018, exact).
 pub const FARADAY: f64 = 96_485.332_12;

@@ -155,13 +155,20 @@ fn variants_of(preset: &str) -> Vec<String> {
 }
 
 fn preset_picker(ui: &mut egui::Ui, inputs: &mut PanelInputs, out: &mut Vec<Command>) {
-    ui.horizontal_wrapped(|ui| {
-        ui.label("preset");
-        for name in builtin::names() {
-            if ui.selectable_label(inputs.preset == name, name).clicked() {
-                inputs.preset = name.to_string();
-                inputs.variant.clear();
-            }
+    ui.horizontal(|ui| {
+        let label = ui.label("preset");
+        let before = inputs.preset.clone();
+        egui::ComboBox::from_id_salt("preset")
+            .selected_text(inputs.preset.clone())
+            .show_ui(ui, |ui| {
+                for name in builtin::names() {
+                    ui.selectable_value(&mut inputs.preset, name.to_string(), name);
+                }
+            })
+            .response
+            .labelled_by(label.id);
+        if inputs.preset != before {
+            inputs.variant.clear();
         }
     });
     ui.horizontal_wrapped(|ui| {

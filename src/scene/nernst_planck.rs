@@ -15,9 +15,9 @@ use super::geometry::{Shape, Solid};
 use super::schema::{Physics, Preset};
 use super::units::Quantity;
 use super::validate::positive;
+use crate::model::nernst_planck::SpeciesLaw;
 use crate::model::nernst_planck::{FARADAY, GAS_CONSTANT, NnppKernel};
 use crate::model::pmb::Influence;
-use crate::scheme::nnpp::SpeciesLaw;
 
 /// Species a scene may carry (the screw has six).
 const MAX_SPECIES: usize = 12;

@@ -10,36 +10,12 @@
 
 use rayon::prelude::*;
 
-use crate::adapt::masks::Phase;
 use crate::discretization::{Families, Quadrature};
-use crate::integrate::sparse::SparseMatrix;
+use crate::model::corrosion::Phase;
+pub use crate::model::nernst_planck::SpeciesLaw;
 use crate::model::nernst_planck::{FARADAY, GAS_CONSTANT, NnppKernel};
 use crate::model::pmb::influence;
-
-/// One species: its name, valence z_k and bond diffusivities by class (m²/s).
-#[derive(Debug, Clone, PartialEq)]
-pub struct SpeciesLaw {
-    pub name: String,
-    pub valence: f64,
-    /// D_{k,l} of liquid–liquid bonds.
-    pub liquid: f64,
-    /// D_{k,int} of interface bonds.
-    pub interface: f64,
-    /// D_{k,s} of solid–solid bonds.
-    pub solid: f64,
-}
-
-impl SpeciesLaw {
-    /// D_{k,ij} of (2.78).
-    #[inline(always)]
-    pub fn diffusivity(&self, a: Phase, b: Phase) -> f64 {
-        match (a.is_solid(), b.is_solid()) {
-            (false, false) => self.liquid,
-            (true, true) => self.solid,
-            _ => self.interface,
-        }
-    }
-}
+use crate::sparse::SparseMatrix;
 
 /// The precomputed bond weights of one grid, aligned with its families' CSR.
 #[derive(Debug, Clone)]

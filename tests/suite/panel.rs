@@ -247,7 +247,9 @@ fn the_recordings_of_a_folder_are_listed_and_replayed() {
 fn picking_a_preset_and_variant_emits_load() {
     let mut h = harness();
     h.run();
-    h.get_by_label("vibrating-plate").click();
+    h.get_by_label("preset").click();
+    h.run();
+    h.get_by_label("abc-wave-1d").click();
     h.run();
     h.get_by_label("small").click();
     h.run();
@@ -256,7 +258,7 @@ fn picking_a_preset_and_variant_emits_load() {
     assert_eq!(
         h.state().emitted,
         [Command::Load {
-            preset: "vibrating-plate".into(),
+            preset: "abc-wave-1d".into(),
             variant: Some("small".into())
         }]
     );
@@ -292,7 +294,12 @@ fn the_panel_starts_at_the_presets_chi() {
     // The picker shows the loaded preset and variant, and the Ω_s line no claim of the standard
     // scheme everywhere.
     let toggled = |label: &str| format!("{:?}", h.get_by_label(label).accesskit_node().toggled());
-    assert_eq!(toggled("kalthoff-winkler"), "Some(True)");
+    let picked = h
+        .get_by_label("preset")
+        .accesskit_node()
+        .value()
+        .map(|v| v.to_string());
+    assert_eq!(picked.as_deref(), Some("kalthoff-winkler"));
     assert_eq!(toggled("small-hybrid"), "Some(True)");
     assert_eq!(toggled("small"), "Some(False)");
     assert!(
