@@ -21,6 +21,7 @@ mod kalthoff_winkler;
 mod multiadaptive;
 mod multigrid;
 mod nnpp;
+mod nnpp_scene;
 mod nnpp_step;
 mod operators;
 mod panel;
