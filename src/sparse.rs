@@ -1,9 +1,16 @@
 //! Sparse linear systems with a fixed pattern (the NNPP species and Poisson systems of
-//! seed-thesis-ch2-3 §2.3): rows in CSR, refilled each step, factored by faer's sparse LU with
-//! partial pivoting. The symbolic analysis is done once per pattern and reused; every solve
-//! reports its relative residual ‖A x − b‖ / ‖b‖.
+//! seed-thesis-ch2-3 §2.3): rows in CSR, refilled each step, solved either by faer's sparse LU
+//! with partial pivoting (the symbolic analysis done once per pattern and reused) or, for 3D
+//! systems whose LU fill does not fit, by faer's BiCGSTAB with a Jacobi (diagonal)
+//! preconditioner on both sides. Every solve reports its relative residual ‖A x − b‖ / ‖b‖,
+//! computed here, not taken from the solver.
 
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::solvers::Solve;
+use faer::matrix_free::bicgstab::{BicgParams, bicgstab, bicgstab_scratch};
+use faer::matrix_free::{InitialGuessStatus, LinOp};
+use faer::reborrow::ReborrowMut;
+use faer::{MatMut, MatRef, Par};
 use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use rayon::prelude::*;
@@ -87,6 +94,8 @@ impl SparseMatrix {
 pub enum SparseError {
     /// The factorization broke down (a structurally or numerically singular matrix).
     Singular(String),
+    /// The iteration stopped above its tolerance.
+    NoConvergence { iterations: usize, residual: f64 },
 }
 
 impl std::fmt::Display for SparseError {
@@ -96,6 +105,15 @@ impl std::fmt::Display for SparseError {
                 f,
                 "the sparse LU failed ({why}): every unknown needs a path to a held value or \
                  a nonzero diagonal"
+            ),
+            SparseError::NoConvergence {
+                iterations,
+                residual,
+            } => write!(
+                f,
+                "BiCGSTAB stopped at relative residual {residual:e} after {iterations} \
+                 iterations: raise `nernst_planck.linear_iterations` or use \
+                 `linear_solver = \"direct\"`"
             ),
         }
     }
@@ -139,6 +157,140 @@ impl DirectSolver {
     /// Forgets the symbolic analysis (the pattern changed).
     pub fn reset(&mut self) {
         self.symbolic = None;
+    }
+}
+
+/// A's rows as faer's matrix-free operator (the product by `SparseMatrix::apply`).
+#[derive(Debug)]
+struct Rows<'a>(&'a SparseMatrix);
+
+impl LinOp<f64> for Rows<'_> {
+    fn apply_scratch(&self, _rhs_ncols: usize, _par: Par) -> StackReq {
+        StackReq::EMPTY
+    }
+    fn nrows(&self) -> usize {
+        self.0.len()
+    }
+    fn ncols(&self) -> usize {
+        self.0.len()
+    }
+    fn apply(&self, mut out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, _par: Par, _: &mut MemStack) {
+        // One right side, in contiguous columns (faer's temporaries are column-major).
+        let x = rhs.col(0).try_as_col_major().expect("a contiguous column");
+        let y = out.rb_mut().col_mut(0);
+        let y = y.try_as_col_major_mut().expect("a contiguous column");
+        self.0.apply(x.as_slice(), y.as_slice_mut());
+    }
+    fn conj_apply(&self, out: MatMut<'_, f64>, rhs: MatRef<'_, f64>, par: Par, s: &mut MemStack) {
+        self.apply(out, rhs, par, s);
+    }
+}
+
+/// How a system is solved.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LinearMethod {
+    /// Sparse LU (exact up to round-off; the fill grows fast in 3D).
+    Direct,
+    /// Jacobi-preconditioned BiCGSTAB to a relative residual.
+    Iterative { tolerance: f64, max_iterations: usize },
+}
+
+/// A solver for one pattern by the chosen method; the LU's symbolic analysis is kept.
+pub struct LinearSolver {
+    pub method: LinearMethod,
+    direct: DirectSolver,
+    /// Iterations of the last iterative solve.
+    pub iterations: usize,
+}
+
+impl LinearSolver {
+    pub fn new(method: LinearMethod) -> LinearSolver {
+        LinearSolver {
+            method,
+            direct: DirectSolver::default(),
+            iterations: 0,
+        }
+    }
+
+    /// Solves A x = b in place of `rhs`; returns the relative residual.
+    pub fn solve(&mut self, a: &SparseMatrix, rhs: &mut [f64]) -> Result<f64, SparseError> {
+        match self.method {
+            LinearMethod::Direct => self.direct.solve(a, rhs),
+            LinearMethod::Iterative {
+                tolerance,
+                max_iterations,
+            } => {
+                let (residual, iterations) = iterative_solve(a, rhs, tolerance, max_iterations)?;
+                self.iterations = iterations;
+                Ok(residual)
+            }
+        }
+    }
+
+    /// Forgets pattern-dependent state (the pattern changed).
+    pub fn reset(&mut self) {
+        self.direct.reset();
+    }
+}
+
+/// BiCGSTAB from x = 0 with the inverse diagonal as left and right preconditioner (a zero
+/// diagonal entry is left unscaled). Returns the relative residual and the iterations.
+fn iterative_solve(
+    a: &SparseMatrix,
+    rhs: &mut [f64],
+    tolerance: f64,
+    max_iterations: usize,
+) -> Result<(f64, usize), SparseError> {
+    let n = a.len();
+    if n == 0 {
+        return Ok((0.0, 0));
+    }
+    // The square root of the inverse diagonal on each side: the preconditioned operator is
+    // D^{-1/2} A D^{-1/2}, symmetric where A is.
+    let scale = faer::Col::<f64>::from_fn(n, |i| {
+        let d = a.entry(i, i).map_or(0.0, |e| a.values[e]).abs();
+        if d > 0.0 { 1.0 / d.sqrt() } else { 1.0 }
+    })
+    .into_diagonal();
+    let op = Rows(a);
+    let b = faer::Mat::<f64>::from_fn(n, 1, |i, _| rhs[i]);
+    let mut x = faer::Mat::<f64>::zeros(n, 1);
+    let params = BicgParams {
+        // x starts at 0, but `Zero` leaves bicgstab's residual r uninitialized in faer 0.23.2
+        // (its r = b − A x is only formed for `MaybeNonZero`): one extra product instead.
+        initial_guess: InitialGuessStatus::MaybeNonZero,
+        rel_tolerance: tolerance,
+        max_iters: max_iterations,
+        ..Default::default()
+    };
+    let par = Par::rayon(0);
+    let mut buffer = MemBuffer::new(bicgstab_scratch(&scale, &scale, &op, 1, par));
+    let outcome = bicgstab(
+        x.as_mut(),
+        &scale,
+        &scale,
+        &op,
+        b.as_ref(),
+        params,
+        |_| {},
+        par,
+        MemStack::new(&mut buffer),
+    );
+    let original = rhs.to_vec();
+    for (i, r) in rhs.iter_mut().enumerate() {
+        *r = x[(i, 0)];
+    }
+    if rhs.iter().any(|v| !v.is_finite()) {
+        return Err(SparseError::Singular("BiCGSTAB broke down".into()));
+    }
+    let residual = a.relative_residual(rhs, &original);
+    match outcome {
+        Ok(info) => Ok((residual, info.iter_count)),
+        Err(_) if residual <= tolerance => Ok((residual, max_iterations)),
+        Err(_) => Err(SparseError::NoConvergence {
+            iterations: max_iterations,
+            residual,
+        }),
     }
 }
 
@@ -193,5 +345,51 @@ mod tests {
             .map(|(x, e)| (x - e).abs())
             .fold(0.0, f64::max);
         assert!(err < 1e-13, "{err:e}");
+    }
+
+    /// BiCGSTAB meets its tolerance on the same system and agrees with the LU.
+    #[test]
+    fn bicgstab_reaches_its_tolerance() {
+        let n: usize = 300;
+        let rows: Vec<Vec<usize>> = (0..n)
+            .map(|i| [i.wrapping_sub(1), i, i + 1].into_iter().filter(|&j| j < n).collect())
+            .collect();
+        let mut a = SparseMatrix::with_pattern(rows);
+        for i in 0..n {
+            for (j, v) in [(i.wrapping_sub(1), -1.2), (i, 2.5 + 0.01 * i as f64), (i + 1, -0.8)] {
+                if let Some(e) = a.entry(i, j) {
+                    a.values[e] = v;
+                }
+            }
+        }
+        let exact: Vec<f64> = (0..n).map(|i| (i as f64 * 0.05).cos()).collect();
+        let mut b = vec![0.0; n];
+        a.apply(&exact, &mut b);
+        let mut direct = b.clone();
+        LinearSolver::new(LinearMethod::Direct)
+            .solve(&a, &mut direct)
+            .unwrap();
+        let mut solver = LinearSolver::new(LinearMethod::Iterative {
+            tolerance: 1e-12,
+            max_iterations: 1000,
+        });
+        let residual = solver.solve(&a, &mut b).unwrap();
+        assert!(residual < 1e-12, "{residual:e}");
+        assert!(solver.iterations > 0);
+        let err = b
+            .iter()
+            .zip(&direct)
+            .map(|(x, e)| (x - e).abs())
+            .fold(0.0, f64::max);
+        assert!(err < 1e-10, "{err:e}");
+        // Too few iterations is an error that says so.
+        let mut b2 = vec![1.0; n];
+        let e = LinearSolver::new(LinearMethod::Iterative {
+            tolerance: 1e-14,
+            max_iterations: 2,
+        })
+        .solve(&a, &mut b2)
+        .unwrap_err();
+        assert!(e.to_string().contains("BiCGSTAB"), "{e}");
     }
 }
