@@ -10,9 +10,9 @@ use faer::linalg::solvers::Solve;
 use faer::matrix_free::bicgstab::{BicgParams, bicgstab, bicgstab_scratch};
 use faer::matrix_free::{InitialGuessStatus, LinOp};
 use faer::reborrow::ReborrowMut;
-use faer::{MatMut, MatRef, Par};
 use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{MatMut, MatRef, Par};
 use rayon::prelude::*;
 
 /// A square sparse matrix in CSR with sorted columns per row; the pattern is fixed, the
@@ -192,7 +192,10 @@ pub enum LinearMethod {
     /// Sparse LU (exact up to round-off; the fill grows fast in 3D).
     Direct,
     /// Jacobi-preconditioned BiCGSTAB to a relative residual.
-    Iterative { tolerance: f64, max_iterations: usize },
+    Iterative {
+        tolerance: f64,
+        max_iterations: usize,
+    },
 }
 
 /// A solver for one pattern by the chosen method; the LU's symbolic analysis is kept.
@@ -352,11 +355,20 @@ mod tests {
     fn bicgstab_reaches_its_tolerance() {
         let n: usize = 300;
         let rows: Vec<Vec<usize>> = (0..n)
-            .map(|i| [i.wrapping_sub(1), i, i + 1].into_iter().filter(|&j| j < n).collect())
+            .map(|i| {
+                [i.wrapping_sub(1), i, i + 1]
+                    .into_iter()
+                    .filter(|&j| j < n)
+                    .collect()
+            })
             .collect();
         let mut a = SparseMatrix::with_pattern(rows);
         for i in 0..n {
-            for (j, v) in [(i.wrapping_sub(1), -1.2), (i, 2.5 + 0.01 * i as f64), (i + 1, -0.8)] {
+            for (j, v) in [
+                (i.wrapping_sub(1), -1.2),
+                (i, 2.5 + 0.01 * i as f64),
+                (i + 1, -0.8),
+            ] {
                 if let Some(e) = a.entry(i, j) {
                     a.values[e] = v;
                 }

@@ -17,7 +17,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 use super::masks::GridClass;
-use crate::discretization::{Families, Lattice, Quadrature, family};
+use crate::discretization::{Families, Interpolation, Lattice, Quadrature, family};
 use crate::scene::{MultigridSpec, Refinement, Scene, SceneError};
 
 /// The two levels' nodes in one index space, and the fictitious nodes' interpolation.
@@ -31,11 +31,8 @@ pub struct MultiGrid<const D: usize> {
     pub ratio: usize,
     pub coarse: Quadrature,
     pub fine: Quadrature,
-    /// Fictitious node `targets[k]` takes Σ w v over `sources[offsets[k]..offsets[k + 1]]`.
-    targets: Vec<u32>,
-    offsets: Vec<usize>,
-    sources: Vec<u32>,
-    weights: Vec<f64>,
+    /// The fictitious nodes' values from the other level (coarse fictitious rows first).
+    pub interpolation: Interpolation,
 }
 
 /// A k-d tree over points (finite lattice coordinates).
@@ -207,21 +204,14 @@ impl<const D: usize> MultiGrid<D> {
         let coarse_tree = tree(&positions[..coarse_count]).expect("coarse nodes exist");
         let fine_tree = tree(&fine_active).expect("fine active nodes exist");
         let fine_offset = coarse_count as u32;
-        let mut targets = Vec::new();
-        let mut offsets = vec![0];
-        let (mut sources, mut weights) = (Vec::new(), Vec::new());
+        let mut interpolation = Interpolation::new();
         for (i, c) in class.iter().enumerate() {
             let pairs = match c {
                 GridClass::CoarseFictitious => idw(&fine_tree, &positions[i], n, fine_offset),
                 GridClass::FineFictitious => idw(&coarse_tree, &positions[i], n, 0),
                 _ => continue,
             };
-            targets.push(i as u32);
-            for (s, w) in pairs {
-                sources.push(s);
-                weights.push(w);
-            }
-            offsets.push(sources.len());
+            interpolation.push(i as u32, pairs);
         }
         let quadrature = Quadrature::of_scene(scene);
         Ok(MultiGrid {
@@ -235,10 +225,7 @@ impl<const D: usize> MultiGrid<D> {
                 spacing: fine_dx,
                 ..quadrature
             },
-            targets,
-            offsets,
-            sources,
-            weights,
+            interpolation,
         })
     }
 
@@ -268,14 +255,7 @@ impl<const D: usize> MultiGrid<D> {
     /// The fictitious values from the other level, (3.85)–(3.88): coarse fictitious nodes
     /// first (they come first, and fine fictitious nodes read them).
     pub fn transfer(&self, values: &mut [f64]) {
-        for (k, &t) in self.targets.iter().enumerate() {
-            let range = self.offsets[k]..self.offsets[k + 1];
-            values[t as usize] = self.sources[range.clone()]
-                .iter()
-                .zip(&self.weights[range])
-                .map(|(&s, w)| w * values[s as usize])
-                .sum();
-        }
+        self.interpolation.transfer(values);
     }
 }
 

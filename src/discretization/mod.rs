@@ -5,11 +5,13 @@
 pub mod buckets;
 pub mod family;
 pub mod grid;
+pub mod interpolation;
 pub mod layers;
 pub mod nodes;
 
 pub use family::Families;
 pub use grid::Lattice;
+pub use interpolation::Interpolation;
 pub use nodes::{Field, NodeValue, Nodes};
 
 use rayon::prelude::*;

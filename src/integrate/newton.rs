@@ -6,12 +6,12 @@
 //! exact up to the linear solve; the loop runs until the relative residual is below the
 //! tolerance or the iteration cap is reached (reported either way).
 
-use crate::discretization::Families;
+use crate::discretization::{Families, Interpolation};
 use crate::model::corrosion::Phase;
 use crate::scheme::nnpp::{
     FamilySystem, ImplicitStep, LinearSource, NnppFields, NnppOperator, Unknowns,
 };
-use crate::sparse::{DirectSolver, SparseError};
+use crate::sparse::{LinearMethod, LinearSolver, SparseError};
 
 /// What one semi-implicit step reports.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -24,17 +24,24 @@ pub struct StepReport {
     pub linear_residual: Vec<f64>,
     /// Per species: Newton iterations taken.
     pub iterations: Vec<usize>,
+    /// BiCGSTAB iterations of the Poisson solve (0 for the LU).
+    pub poisson_iterations: usize,
+    /// Per species: BiCGSTAB iterations summed over its Newton iterations (0 for the LU).
+    pub linear_iterations: Vec<usize>,
 }
 
 /// The two systems and their factorizations, kept across steps.
 pub struct SemiImplicit {
     species: FamilySystem,
     poisson: FamilySystem,
-    species_solver: DirectSolver,
-    poisson_solver: DirectSolver,
+    species_solver: LinearSolver,
+    poisson_solver: LinearSolver,
     /// Solid nodes when the Poisson pattern was built (it is rebuilt when a phase changes).
     poisson_solid: usize,
     held: Vec<bool>,
+    constraints: Interpolation,
+    /// Iterations of the last Poisson solve (BiCGSTAB; 0 for the LU).
+    pub poisson_iterations: usize,
     pub tolerance: f64,
     pub max_iterations: usize,
     residual: Vec<f64>,
@@ -42,18 +49,31 @@ pub struct SemiImplicit {
 }
 
 impl SemiImplicit {
-    /// `held`: nodes whose species and φ are known (Dirichlet).
-    pub fn new(families: &Families, held: Vec<bool>, phase: &[Phase]) -> SemiImplicit {
-        let species = FamilySystem::new(families, Unknowns::of(held.iter().map(|h| !h)));
-        let poisson = Self::poisson_pattern(families, &held, phase);
+    /// `held`: nodes whose species and φ are known (Dirichlet); `constraints`: nodes whose
+    /// values interpolate others' (a multi-grid's fictitious nodes; empty on one grid).
+    pub fn new(
+        families: &Families,
+        held: Vec<bool>,
+        phase: &[Phase],
+        constraints: Interpolation,
+        method: LinearMethod,
+    ) -> SemiImplicit {
+        let species = FamilySystem::new(
+            families,
+            Unknowns::of(held.iter().map(|h| !h)),
+            &constraints,
+        );
+        let poisson = Self::poisson_pattern(families, &held, phase, &constraints);
         let n = species.unknowns.len();
         SemiImplicit {
             species,
             poisson,
-            species_solver: DirectSolver::default(),
-            poisson_solver: DirectSolver::default(),
+            species_solver: LinearSolver::new(method),
+            poisson_solver: LinearSolver::new(method),
             poisson_solid: phase.iter().filter(|p| p.is_solid()).count(),
             held,
+            constraints,
+            poisson_iterations: 0,
             tolerance: 1e-10,
             max_iterations: 4,
             residual: vec![0.0; n],
@@ -61,10 +81,16 @@ impl SemiImplicit {
         }
     }
 
-    fn poisson_pattern(families: &Families, held: &[bool], phase: &[Phase]) -> FamilySystem {
+    fn poisson_pattern(
+        families: &Families,
+        held: &[bool],
+        phase: &[Phase],
+        constraints: &Interpolation,
+    ) -> FamilySystem {
         FamilySystem::new(
             families,
             Unknowns::of(held.iter().zip(phase).map(|(h, p)| !h && !p.is_solid())),
+            constraints,
         )
     }
 
@@ -83,7 +109,8 @@ impl SemiImplicit {
     ) -> Result<f64, SparseError> {
         let solid = f.phase.iter().filter(|p| p.is_solid()).count();
         if solid != self.poisson_solid {
-            self.poisson = Self::poisson_pattern(op.families, &self.held, &f.phase);
+            self.poisson =
+                Self::poisson_pattern(op.families, &self.held, &f.phase, &self.constraints);
             self.poisson_solver.reset();
             self.poisson_solid = solid;
         }
@@ -95,6 +122,7 @@ impl SemiImplicit {
         let mut rhs = vec![0.0; self.poisson.unknowns.len()];
         op.poisson_system(&mut self.poisson, f, extra, &mut rhs);
         let residual = self.poisson_solver.solve(&self.poisson.matrix, &mut rhs)?;
+        self.poisson_iterations = self.poisson_solver.iterations;
         for (&i, &v) in self.poisson.unknowns.nodes.iter().zip(&rhs) {
             f.potential[i as usize] = v;
         }
@@ -114,30 +142,35 @@ impl SemiImplicit {
         report.newton_residual.clear();
         report.linear_residual.clear();
         report.iterations.clear();
+        report.linear_iterations.clear();
+        report.poisson_iterations = self.poisson_iterations;
         for (k, source) in sources.iter().enumerate() {
             self.old.clone_from(&f.concentration[k]);
             op.species_jacobian(&mut self.species, k, f, dt, source);
             let unknowns = &self.species.unknowns;
+            let system = &self.species;
             let step = ImplicitStep {
                 old: &self.old,
                 dt,
                 sources: source,
             };
-            op.species_residual(unknowns, k, f, &step, &mut self.residual);
+            op.species_residual(system, k, f, &step, &mut self.residual);
             let initial = norm(&self.residual);
             let (mut relative, mut linear, mut iterations) = (0.0_f64, 0.0_f64, 0);
+            let mut linear_iterations = 0;
             while iterations < self.max_iterations {
                 let mut delta: Vec<f64> = self.residual.iter().map(|r| -r).collect();
                 let r = self
                     .species_solver
                     .solve(&self.species.matrix, &mut delta)?;
                 linear = linear.max(r);
+                linear_iterations += self.species_solver.iterations;
                 let c = &mut f.concentration[k];
                 for (&i, d) in unknowns.nodes.iter().zip(&delta) {
                     c[i as usize] += d;
                 }
                 iterations += 1;
-                op.species_residual(unknowns, k, f, &step, &mut self.residual);
+                op.species_residual(system, k, f, &step, &mut self.residual);
                 relative = if initial > 0.0 {
                     norm(&self.residual) / initial
                 } else {
@@ -150,6 +183,7 @@ impl SemiImplicit {
             report.newton_residual.push(relative);
             report.linear_residual.push(linear);
             report.iterations.push(iterations);
+            report.linear_iterations.push(linear_iterations);
         }
         Ok(())
     }
@@ -182,6 +216,7 @@ impl SemiImplicit {
             for (&i, v) in unknowns.nodes.iter().zip(update) {
                 f.concentration[k][i as usize] = v;
             }
+            self.constraints.transfer(&mut f.concentration[k]);
         }
     }
 }

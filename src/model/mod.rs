@@ -3,5 +3,6 @@
 pub mod corrosion;
 pub mod diffusion;
 pub mod nernst_planck;
+pub mod nnpp_reactions;
 pub mod osb;
 pub mod pmb;

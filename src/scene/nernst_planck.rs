@@ -17,7 +17,9 @@ use super::units::Quantity;
 use super::validate::positive;
 use crate::model::nernst_planck::SpeciesLaw;
 use crate::model::nernst_planck::{FARADAY, GAS_CONSTANT, NnppKernel};
+use crate::model::nnpp_reactions::{ButlerVolmer, ReactionLaw};
 use crate::model::pmb::Influence;
+use crate::sparse::LinearMethod;
 
 /// Species a scene may carry (the screw has six).
 const MAX_SPECIES: usize = 12;
@@ -44,6 +46,53 @@ pub struct NernstPlanckTable {
     pub max_iterations: Option<usize>,
     pub species: Vec<SpeciesTable>,
     pub manufactured: Option<ManufacturedTable>,
+    /// The amount of substance of one unit of C, for the Poisson charge F Σ z C (default
+    /// "1 mol/m^3"; the screw's concentrations are normalized by C_solid = 143.1 mol/L).
+    pub concentration_unit: Option<Quantity>,
+    /// "direct" (sparse LU), "bicgstab" (Jacobi-preconditioned) or "auto" (the default:
+    /// direct in 1D and 2D, bicgstab in 3D, where the LU's fill does not fit).
+    pub linear_solver: Option<String>,
+    /// BiCGSTAB's relative residual target (default 1e-12) and iteration cap (default 5000).
+    pub linear_tolerance: Option<f64>,
+    pub linear_iterations: Option<usize>,
+    pub reactions: Option<ReactionsTable>,
+}
+
+/// The screw's reactions (3.98)–(3.103) and the Butler–Volmer interface diffusivity (3.92).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReactionsTable {
+    /// The species of each role, by name (the metal must be the first species: the phase
+    /// change reads C1).
+    pub metal: String,
+    pub complex: String,
+    pub hydrogen: String,
+    pub hydroxide: String,
+    /// k1f, k1b of (3.95), k2f, k2b of (3.96) (Table 3.7's numbers, in the species' unit).
+    pub forward_1: f64,
+    pub backward_1: f64,
+    pub forward_2: f64,
+    pub backward_2: f64,
+    /// J50, J60 of (3.100)–(3.101).
+    pub hydrogen_current: f64,
+    pub hydroxide_current: f64,
+    /// α_H⁺, α_OH⁻.
+    pub hydrogen_charge: f64,
+    pub hydroxide_charge: f64,
+    /// c_solid in J/(z F c_solid).
+    pub solid_concentration: Quantity,
+    pub applied_potential: Quantity,
+    pub standard_potential: Quantity,
+    pub butler_volmer: Option<ButlerVolmerTable>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ButlerVolmerTable {
+    /// D0 (m²/s).
+    pub exchange: Quantity,
+    pub anodic: f64,
+    pub cathodic: f64,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -100,6 +149,10 @@ pub struct NernstPlanckSpec {
     pub max_iterations: usize,
     pub species: Vec<SpeciesSpec>,
     pub manufactured: Option<Manufactured>,
+    /// mol/m³ per unit of C.
+    pub concentration_unit: f64,
+    pub linear: LinearMethod,
+    pub reactions: Option<ReactionLaw>,
 }
 
 /// The manufactured solution of a 1D scene with ω = 1 and q1 = q2 = q3 = −1/2, where every
@@ -297,6 +350,16 @@ pub(super) fn nernst_planck(
         .as_ref()
         .map(|m| manufactured(m, ctx, dim, &kernel, list.len()))
         .transpose()?;
+    let concentration_unit = match table.concentration_unit {
+        Some(q) => positive(ctx, "nernst_planck.concentration_unit", q.si())?,
+        None => 1.0,
+    };
+    let linear = linear_method(table, ctx, dim)?;
+    let reactions = table
+        .reactions
+        .as_ref()
+        .map(|r| reactions(r, ctx, &list, table.saturation))
+        .transpose()?;
     Ok(Some(NernstPlanckSpec {
         temperature,
         conductivity,
@@ -307,7 +370,169 @@ pub(super) fn nernst_planck(
         max_iterations,
         species: list,
         manufactured,
+        concentration_unit,
+        linear,
+        reactions,
     }))
+}
+
+fn linear_method(
+    table: &NernstPlanckTable,
+    ctx: &ErrorContext,
+    dim: usize,
+) -> Result<LinearMethod, SceneError> {
+    let tolerance = table.linear_tolerance.unwrap_or(1e-12);
+    if !(tolerance > 0.0 && tolerance < 1.0) {
+        return Err(ctx.error(
+            "nernst_planck.linear_tolerance",
+            format!("a relative residual in (0, 1), got {tolerance}"),
+        ));
+    }
+    let max_iterations = table.linear_iterations.unwrap_or(5000);
+    if !(1..=1_000_000).contains(&max_iterations) {
+        return Err(ctx.error(
+            "nernst_planck.linear_iterations",
+            format!("1 to 1000000 BiCGSTAB iterations, got {max_iterations}"),
+        ));
+    }
+    let iterative = LinearMethod::Iterative {
+        tolerance,
+        max_iterations,
+    };
+    match table.linear_solver.as_deref().unwrap_or("auto") {
+        "direct" => Ok(LinearMethod::Direct),
+        "bicgstab" => Ok(iterative),
+        "auto" if dim == 3 => Ok(iterative),
+        "auto" => Ok(LinearMethod::Direct),
+        other => Err(ctx.error(
+            "nernst_planck.linear_solver",
+            format!("`{other}`: one of \"direct\", \"bicgstab\", \"auto\""),
+        )),
+    }
+}
+
+fn reactions(
+    r: &ReactionsTable,
+    ctx: &ErrorContext,
+    species: &[SpeciesSpec],
+    saturation: Option<f64>,
+) -> Result<ReactionLaw, SceneError> {
+    let field = "nernst_planck.reactions";
+    let find = |role: &str, name: &str| {
+        species
+            .iter()
+            .position(|s| s.law.name == name)
+            .ok_or_else(|| {
+                ctx.error(
+                    &format!("{field}.{role}"),
+                    format!(
+                        "`{name}` is not a species (have: {})",
+                        species
+                            .iter()
+                            .map(|s| s.law.name.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                )
+            })
+    };
+    let metal = find("metal", &r.metal)?;
+    if metal != 0 {
+        return Err(ctx.error(
+            &format!("{field}.metal"),
+            "must name the first species (the phase change reads C1)",
+        ));
+    }
+    let roles = [
+        metal,
+        find("complex", &r.complex)?,
+        find("hydrogen", &r.hydrogen)?,
+        find("hydroxide", &r.hydroxide)?,
+    ];
+    if (1..4).any(|a| roles[..a].contains(&roles[a])) {
+        return Err(ctx.error(field, "metal, complex, hydrogen and hydroxide must differ"));
+    }
+    let Some(saturation) = saturation.filter(|s| *s > 0.0) else {
+        return Err(ctx.error(
+            "nernst_planck.saturation",
+            "the reactions' overpotential (3.103) needs C_sat > 0",
+        ));
+    };
+    for (name, v) in [
+        ("forward_1", r.forward_1),
+        ("backward_1", r.backward_1),
+        ("forward_2", r.forward_2),
+        ("backward_2", r.backward_2),
+        ("hydrogen_charge", r.hydrogen_charge),
+        ("hydroxide_charge", r.hydroxide_charge),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return Err(ctx.error(&format!("{field}.{name}"), format!("≥ 0, got {v}")));
+        }
+    }
+    for (name, v) in [
+        ("hydrogen_current", r.hydrogen_current),
+        ("hydroxide_current", r.hydroxide_current),
+    ] {
+        if !v.is_finite() {
+            return Err(ctx.error(&format!("{field}.{name}"), "must be finite"));
+        }
+    }
+    for (k, role) in [(roles[2], "hydrogen"), (roles[3], "hydroxide")] {
+        if species[k].law.valence == 0.0 {
+            return Err(ctx.error(
+                &format!("{field}.{role}"),
+                "an interface current J/(z F c_solid) needs a charged species (z ≠ 0)",
+            ));
+        }
+    }
+    let butler_volmer = r
+        .butler_volmer
+        .as_ref()
+        .map(|b| -> Result<ButlerVolmer, SceneError> {
+            let exchange = positive(
+                ctx,
+                &format!("{field}.butler_volmer.exchange"),
+                b.exchange.si(),
+            )?;
+            for (name, v) in [("anodic", b.anodic), ("cathodic", b.cathodic)] {
+                if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                    return Err(ctx.error(
+                        &format!("{field}.butler_volmer.{name}"),
+                        format!("a charge-transfer coefficient in [0, 1], got {v}"),
+                    ));
+                }
+            }
+            Ok(ButlerVolmer {
+                exchange,
+                anodic: b.anodic,
+                cathodic: b.cathodic,
+            })
+        })
+        .transpose()?;
+    Ok(ReactionLaw {
+        metal,
+        complex: roles[1],
+        hydrogen: roles[2],
+        hydroxide: roles[3],
+        forward_1: r.forward_1,
+        backward_1: r.backward_1,
+        forward_2: r.forward_2,
+        backward_2: r.backward_2,
+        hydrogen_current: r.hydrogen_current,
+        hydroxide_current: r.hydroxide_current,
+        hydrogen_charge: r.hydrogen_charge,
+        hydroxide_charge: r.hydroxide_charge,
+        solid_concentration: positive(
+            ctx,
+            &format!("{field}.solid_concentration"),
+            r.solid_concentration.si(),
+        )?,
+        applied_potential: r.applied_potential.si(),
+        standard_potential: r.standard_potential.si(),
+        saturation,
+        butler_volmer,
+    })
 }
 
 fn manufactured(

@@ -10,7 +10,7 @@
 
 use rayon::prelude::*;
 
-use crate::discretization::{Families, Quadrature};
+use crate::discretization::{Families, Interpolation, Quadrature};
 use crate::model::corrosion::Phase;
 pub use crate::model::nernst_planck::SpeciesLaw;
 use crate::model::nernst_planck::{FARADAY, GAS_CONSTANT, NnppKernel};
@@ -31,11 +31,12 @@ pub struct NnppBonds {
 }
 
 impl NnppBonds {
+    /// `quadrature(i)`: the β rule of node i's rows (a multi-grid level's spacing).
     pub fn new(
         kernel: &NnppKernel,
         families: &Families,
         volumes: &[f64],
-        quadrature: &Quadrature,
+        quadrature: &(dyn Fn(usize) -> Quadrature + Sync),
         temperature: f64,
     ) -> NnppBonds {
         let constants = kernel.constants();
@@ -45,6 +46,7 @@ impl NnppBonds {
             (0..families.node_count())
                 .into_par_iter()
                 .flat_map_iter(|i| {
+                    let quadrature = quadrature(i);
                     families.range(i).map(move |b| {
                         let r = families.lengths[b];
                         let j = families.neighbors[b] as usize;
@@ -100,29 +102,47 @@ impl Unknowns {
 }
 
 /// A system matrix over `unknowns` with the family pattern (diagonal and unknown neighbours),
-/// and for each directed bond the entry its far end fills (None: a known far end).
+/// and for each directed bond the entry its far end fills (None: a known far end). Unknowns
+/// that are targets of `constraints` (a multi-grid's fictitious nodes) get the constraint row
+/// v_t − Σ w v_s = 0 (times a scale) instead of a family row.
 #[derive(Debug, Clone)]
 pub struct FamilySystem {
     pub unknowns: Unknowns,
     pub matrix: SparseMatrix,
+    pub constraints: Interpolation,
+    /// Per unknown row: its constraint row, or u32::MAX for a family row.
+    constrained: Vec<u32>,
     diagonal: Vec<usize>,
-    /// Per directed bond of the unknown rows, in the rows' order: the entry or usize::MAX.
+    /// Per directed bond of the family rows, in the rows' order: the entry or usize::MAX.
     bond_entry: Vec<usize>,
     /// Start of each unknown row's bonds in `bond_entry`.
     bond_offsets: Vec<usize>,
 }
 
 impl FamilySystem {
-    pub fn new(families: &Families, unknowns: Unknowns) -> FamilySystem {
+    pub fn new(families: &Families, unknowns: Unknowns, constraints: &Interpolation) -> Self {
+        let row_of = constraints.row_of(unknowns.index.len());
+        let constrained: Vec<u32> = unknowns.nodes.iter().map(|&i| row_of[i as usize]).collect();
         let rows: Vec<Vec<usize>> = unknowns
             .nodes
             .par_iter()
-            .map(|&i| {
+            .zip(&constrained)
+            .map(|(&i, &k)| {
                 let mut row = vec![unknowns.index[i as usize] as usize];
-                row.extend(families.range(i as usize).filter_map(|b| {
-                    let u = unknowns.index[families.neighbors[b] as usize];
+                let far: Vec<u32> = if k == u32::MAX {
+                    families
+                        .range(i as usize)
+                        .map(|b| families.neighbors[b])
+                        .collect()
+                } else {
+                    constraints.row(k as usize).0.to_vec()
+                };
+                row.extend(far.into_iter().filter_map(|j| {
+                    let u = unknowns.index[j as usize];
                     (u != u32::MAX).then_some(u as usize)
                 }));
+                row.sort_unstable();
+                row.dedup();
                 row
             })
             .collect();
@@ -132,35 +152,50 @@ impl FamilySystem {
         let mut bond_offsets = vec![0];
         for (r, &i) in unknowns.nodes.iter().enumerate() {
             diagonal.push(matrix.entry(r, r).unwrap_or(usize::MAX));
-            for b in families.range(i as usize) {
-                let u = unknowns.index[families.neighbors[b] as usize];
-                bond_entry.push(if u == u32::MAX {
-                    usize::MAX
-                } else {
-                    matrix.entry(r, u as usize).unwrap_or(usize::MAX)
-                });
+            if constrained[r] == u32::MAX {
+                for b in families.range(i as usize) {
+                    let u = unknowns.index[families.neighbors[b] as usize];
+                    bond_entry.push(if u == u32::MAX {
+                        usize::MAX
+                    } else {
+                        matrix.entry(r, u as usize).unwrap_or(usize::MAX)
+                    });
+                }
             }
             bond_offsets.push(bond_entry.len());
         }
         FamilySystem {
             unknowns,
             matrix,
+            constraints: constraints.clone(),
+            constrained,
             diagonal,
             bond_entry,
             bond_offsets,
         }
     }
 
+    /// The constraint row of unknown row `r`, if it has one.
+    #[inline]
+    pub fn constraint(&self, r: usize) -> Option<usize> {
+        let k = self.constrained[r];
+        (k != u32::MAX).then_some(k as usize)
+    }
+
     /// Fills the matrix row by row: `row(i, add)` calls `add(entry, value)` with `entry` the
-    /// diagonal (usize::MAX) or a bond's local index in the node's family.
+    /// diagonal (None) or a bond's index in the families' CSR; constraint rows get
+    /// `constraint_scale` (1 − Σ w …) without calling `row`.
     fn fill(
         &mut self,
         families: &Families,
+        constraint_scale: f64,
         row: impl Fn(usize, &mut dyn FnMut(Option<usize>, f64)) + Sync,
     ) {
         let FamilySystem {
             unknowns,
             matrix,
+            constraints,
+            constrained,
             diagonal,
             bond_entry,
             bond_offsets,
@@ -175,8 +210,26 @@ impl FamilySystem {
             rest = tail;
         }
         let offsets = &matrix.offsets;
+        let columns = &matrix.columns;
         slices.into_par_iter().enumerate().for_each(|(r, values)| {
             let start = offsets[r];
+            if constrained[r] != u32::MAX {
+                let cols = &columns[start..offsets[r + 1]];
+                let mut put = |column: usize, value: f64| {
+                    if let Ok(e) = cols.binary_search(&column) {
+                        values[e] += value;
+                    }
+                };
+                put(r, constraint_scale);
+                let (sources, weights) = constraints.row(constrained[r] as usize);
+                for (&s, &w) in sources.iter().zip(weights) {
+                    let u = unknowns.index[s as usize];
+                    if u != u32::MAX {
+                        put(u as usize, -constraint_scale * w);
+                    }
+                }
+                return;
+            }
             let i = unknowns.nodes[r] as usize;
             let first = families.offsets[i];
             let entries = &bond_entry[bond_offsets[r]..bond_offsets[r + 1]];
@@ -191,6 +244,17 @@ impl FamilySystem {
             });
         });
     }
+
+    /// Σ w v over the known (not unknown) sources of constraint row `k`.
+    fn known_part(&self, k: usize, values: &[f64]) -> f64 {
+        let (sources, weights) = self.constraints.row(k);
+        sources
+            .iter()
+            .zip(weights)
+            .filter(|(s, _)| self.unknowns.index[**s as usize] == u32::MAX)
+            .map(|(&s, w)| w * values[s as usize])
+            .sum()
+    }
 }
 
 /// The fields the step reads: per species concentration C_k (SoA), the potential φ and the
@@ -200,10 +264,27 @@ pub struct NnppFields {
     pub concentration: Vec<Vec<f64>>,
     pub potential: Vec<f64>,
     pub phase: Vec<Phase>,
+    /// A species whose interface bonds take a per-node diffusivity, read at the bond's solid
+    /// end (the Butler–Volmer D_int(η) of (3.92)); None: every species by its law.
+    pub interface_diffusivity: Option<(usize, Vec<f64>)>,
+}
+
+impl NnppFields {
+    /// D_{k,ij} of bond i→j (2.78), symmetric in i and j.
+    #[inline(always)]
+    pub fn bond_diffusivity(&self, law: &SpeciesLaw, k: usize, i: usize, j: usize) -> f64 {
+        let (a, b) = (self.phase[i], self.phase[j]);
+        match &self.interface_diffusivity {
+            Some((species, d)) if *species == k && a.is_solid() != b.is_solid() => {
+                d[if a.is_solid() { i } else { j }]
+            }
+            _ => law.diffusivity(a, b),
+        }
+    }
 }
 
 /// A linear source linearized in the implicit species: R = r0 + r1 C_k^{n+1} per node.
-pub type LinearSource = [f64; 2];
+pub use crate::model::nnpp_reactions::LinearSource;
 
 /// What the residual (3.11) of one species holds fixed over a step: C^n, Δt and the
 /// linearized sources.
@@ -221,6 +302,8 @@ pub struct NnppOperator<'a> {
     pub species: &'a [SpeciesLaw],
     /// σ of liquid and interface bonds (the micro-conductivity of (2.64)), S/m.
     pub conductivity: f64,
+    /// mol/m³ per unit of C in the charge F Σ z C (1 when C is in mol/m³).
+    pub concentration_unit: f64,
 }
 
 impl NnppOperator<'_> {
@@ -235,7 +318,7 @@ impl NnppOperator<'_> {
             .range(i)
             .map(|b| {
                 let j = self.families.neighbors[b] as usize;
-                let d = law.diffusivity(f.phase[i], f.phase[j]);
+                let d = f.bond_diffusivity(law, k, i, j);
                 d * (self.bonds.diffusion[b] * (c[j] - ci)
                     + self.bonds.migration[b] * zf * (f.potential[j] - pi) * (c[j] + ci))
             })
@@ -255,11 +338,11 @@ impl NnppOperator<'_> {
     ) {
         let law = &self.species[k];
         let zf = law.valence * self.bonds.thermal;
-        system.fill(self.families, |i, add| {
+        system.fill(self.families, 1.0 / dt, |i, add| {
             let mut diag = 1.0 / dt - sources[i][1];
             for b in self.families.range(i) {
                 let j = self.families.neighbors[b] as usize;
-                let d = law.diffusivity(f.phase[i], f.phase[j]);
+                let d = f.bond_diffusivity(law, k, i, j);
                 let g1 = self.bonds.diffusion[b];
                 let g2 = self.bonds.migration[b] * zf * (f.potential[j] - f.potential[i]);
                 diag += d * (g1 - g2);
@@ -270,10 +353,10 @@ impl NnppOperator<'_> {
     }
 
     /// The residual (3.11) of species k at the iterate `f.concentration[k]` on the unknown
-    /// rows: (C − C^n)/Δt − Σ … − R.
+    /// rows: (C − C^n)/Δt − Σ … − R; on constraint rows (C_t − Σ w C_s)/Δt.
     pub fn species_residual(
         &self,
-        unknowns: &Unknowns,
+        system: &FamilySystem,
         k: usize,
         f: &NnppFields,
         step: &ImplicitStep,
@@ -281,11 +364,19 @@ impl NnppOperator<'_> {
     ) {
         let ImplicitStep { old, dt, sources } = *step;
         let c = &f.concentration[k];
-        out.par_iter_mut().zip(&unknowns.nodes).for_each(|(o, &i)| {
-            let i = i as usize;
-            let reaction = sources[i][0] + sources[i][1] * c[i];
-            *o = (c[i] - old[i]) / dt - self.species_rate(k, i, f) - reaction;
-        });
+        out.par_iter_mut()
+            .zip(&system.unknowns.nodes)
+            .enumerate()
+            .for_each(|(r, (o, &i))| {
+                let i = i as usize;
+                *o = match system.constraint(r) {
+                    Some(row) => (c[i] - system.constraints.value(row, c)) / dt,
+                    None => {
+                        let reaction = sources[i][0] + sources[i][1] * c[i];
+                        (c[i] - old[i]) / dt - self.species_rate(k, i, f) - reaction
+                    }
+                };
+            });
     }
 
     /// The Poisson system (3.18)–(3.21) on the liquid unknown rows: K_ii = Σ g3 σ,
@@ -298,7 +389,7 @@ impl NnppOperator<'_> {
         rhs: &mut [f64],
     ) {
         let sigma = self.conductivity;
-        system.fill(self.families, |i, add| {
+        system.fill(self.families, 1.0, |i, add| {
             let mut diag = 0.0;
             for b in self.families.range(i) {
                 let w = self.bonds.poisson[b] * sigma;
@@ -308,23 +399,32 @@ impl NnppOperator<'_> {
             add(None, diag);
         });
         let unknowns = &system.unknowns;
-        rhs.par_iter_mut().zip(&unknowns.nodes).for_each(|(r, &i)| {
-            let i = i as usize;
-            let charge: f64 = self
-                .species
-                .iter()
-                .zip(&f.concentration)
-                .map(|(s, c)| s.valence * c[i])
-                .sum();
-            let known: f64 = self
-                .families
-                .range(i)
-                .filter(|&b| unknowns.index[self.families.neighbors[b] as usize] == u32::MAX)
-                .map(|b| {
-                    self.bonds.poisson[b] * sigma * f.potential[self.families.neighbors[b] as usize]
-                })
-                .sum();
-            *r = FARADAY * charge + extra[i] + known;
-        });
+        rhs.par_iter_mut()
+            .zip(&unknowns.nodes)
+            .enumerate()
+            .for_each(|(row, (r, &i))| {
+                if let Some(k) = system.constraint(row) {
+                    *r = system.known_part(k, &f.potential);
+                    return;
+                }
+                let i = i as usize;
+                let charge: f64 = self
+                    .species
+                    .iter()
+                    .zip(&f.concentration)
+                    .map(|(s, c)| s.valence * c[i])
+                    .sum();
+                let known: f64 = self
+                    .families
+                    .range(i)
+                    .filter(|&b| unknowns.index[self.families.neighbors[b] as usize] == u32::MAX)
+                    .map(|b| {
+                        self.bonds.poisson[b]
+                            * sigma
+                            * f.potential[self.families.neighbors[b] as usize]
+                    })
+                    .sum();
+                *r = FARADAY * self.concentration_unit * charge + extra[i] + known;
+            });
     }
 }

@@ -4,10 +4,14 @@
 //! Newton iteration), with the phase change on C₁ and an optional manufactured reference.
 //! Reactions (3.98)–(3.103) are not built yet: the sources are the manufactured ones or zero.
 
-use crate::adapt::masks::Phase;
-use crate::discretization::Discretization;
+use rayon::prelude::*;
+
+use crate::adapt::masks::{GridClass, Phase};
+use crate::adapt::multigrid::MultiGrid;
+use crate::discretization::{Discretization, Families, Interpolation};
 use crate::frame::{Frame, NodeField};
 use crate::integrate::newton::{SemiImplicit, StepReport};
+use crate::model::nnpp_reactions::Site;
 use crate::scene::nernst_planck::NernstPlanckSpec;
 use crate::scene::{Condition, Scene, SceneError};
 use crate::scheme::nnpp::{LinearSource, NnppBonds, NnppFields, NnppOperator, SpeciesLaw};
@@ -15,26 +19,40 @@ use crate::solver::{
     Clock, Integrator, Lap, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
 };
 
-const STAGES: &[&str] = &["poisson", "species", "phase_change"];
+const STAGES: &[&str] = &["poisson", "reactions", "species", "phase_change"];
 const POISSON: usize = 0;
-const SPECIES: usize = 1;
-const PHASE_CHANGE: usize = 2;
+const REACTIONS: usize = 1;
+const SPECIES: usize = 2;
+const PHASE_CHANGE: usize = 3;
 
 /// The colour range of φ when no manufactured amplitude sets it (V).
 const DEFAULT_POTENTIAL_RANGE: f64 = 0.1;
+/// The colour range of the overpotential η (V): 0 to φ_applied − φ0 of Table 3.7 and more.
+const OVERPOTENTIAL_RANGE: f64 = 0.25;
 
 pub struct NernstPlanckSimulation<const D: usize> {
     spec: NernstPlanckSpec,
     discretization: Discretization<D>,
+    /// The two levels of a multi-grid scene (classes, interpolation); None on one grid.
+    multigrid: Option<MultiGrid<D>>,
     bonds: NnppBonds,
     laws: Vec<SpeciesLaw>,
     fields: NnppFields,
     solver: SemiImplicit,
     sources: Vec<Vec<LinearSource>>,
+    /// The manufactured sources (fixed; the reactions' are rebuilt each step).
+    manufactured_sources: Option<Vec<Vec<LinearSource>>>,
     poisson_source: Vec<f64>,
     report: StepReport,
     /// The nodes the solve updates (not held): the errors are measured over them.
     free: Vec<bool>,
+    /// Each node's volume where it is active, 0 on fictitious nodes: Σ C V is the total.
+    active_volumes: Vec<f64>,
+    /// Reaction sites (bulk solid, bulk liquid, interface), rebuilt when a phase changes.
+    sites: Vec<Site>,
+    /// η per node (3.102) at interface sites, 0 elsewhere.
+    overpotential: Vec<f64>,
+    initial_solid_volume: f64,
     initial_totals: Vec<f64>,
     species_ranges: Vec<f64>,
     potential_range: f64,
@@ -47,7 +65,17 @@ impl<const D: usize> NernstPlanckSimulation<D> {
         let Some(spec) = scene.nernst_planck.clone() else {
             return Err(scene.error("nernst_planck", "the scene has no [nernst_planck] table"));
         };
-        let discretization = Discretization::<D>::of_scene(scene)?;
+        let (discretization, multigrid) = match &scene.multigrid {
+            None => (Discretization::<D>::of_scene(scene)?, None),
+            Some(m) => {
+                let mut grid = MultiGrid::<D>::build(scene, m)?;
+                let positions = std::mem::take(&mut grid.positions);
+                let volumes = std::mem::take(&mut grid.volumes);
+                let families = std::mem::take(&mut grid.families);
+                let d = Discretization::of_nodes(scene, positions, volumes, families)?;
+                (d, Some(grid))
+            }
+        };
         let n = discretization.len();
         let positions = discretization.nodes.reference();
         let volumes = discretization.nodes.volumes();
@@ -112,39 +140,62 @@ impl<const D: usize> NernstPlanckSimulation<D> {
                  solid region (φ = 0 there)",
             ));
         }
+        let quadrature = |i: usize| match &multigrid {
+            Some(g) if g.class[i].is_fine() => g.fine,
+            Some(g) => g.coarse,
+            None => discretization.quadrature,
+        };
         let bonds = NnppBonds::new(
             &spec.kernel,
             &discretization.families,
             volumes,
-            &discretization.quadrature,
+            &quadrature,
             spec.temperature,
         );
         let laws: Vec<SpeciesLaw> = spec.species.iter().map(|s| s.law.clone()).collect();
-        let sources: Vec<Vec<LinearSource>> = (0..laws.len())
-            .map(|k| {
-                positions
-                    .iter()
-                    .map(|x| {
-                        [
-                            manufactured.map_or(0.0, |m| m.species_source(&spec, k, x[0])),
-                            0.0,
-                        ]
-                    })
-                    .collect()
-            })
-            .collect();
+        let manufactured_sources: Option<Vec<Vec<LinearSource>>> = manufactured.map(|m| {
+            (0..laws.len())
+                .map(|k| {
+                    positions
+                        .iter()
+                        .map(|x| [m.species_source(&spec, k, x[0]), 0.0])
+                        .collect()
+                })
+                .collect()
+        });
+        let sources = manufactured_sources
+            .clone()
+            .unwrap_or_else(|| vec![vec![[0.0; 2]; n]; laws.len()]);
         let poisson_source = positions
             .iter()
             .map(|x| manufactured.map_or(0.0, |m| m.poisson_source(&spec, x[0])))
             .collect();
+        let interpolation = multigrid
+            .as_ref()
+            .map_or_else(Interpolation::new, |g| g.interpolation.clone());
         let free = held.iter().map(|h| !h).collect();
-        let mut solver = SemiImplicit::new(&discretization.families, held, &phase);
+        let mut solver = SemiImplicit::new(
+            &discretization.families,
+            held,
+            &phase,
+            interpolation.clone(),
+            spec.linear,
+        );
         solver.tolerance = spec.tolerance;
         solver.max_iterations = spec.max_iterations;
+        for c in concentration.iter_mut() {
+            interpolation.transfer(c);
+        }
+        let interface_diffusivity = spec
+            .reactions
+            .as_ref()
+            .filter(|r| r.butler_volmer.is_some())
+            .map(|r| (r.metal, vec![laws[r.metal].interface; n]));
         let fields = NnppFields {
             concentration,
             potential,
             phase,
+            interface_diffusivity,
         };
         let stable = StableStep {
             sharp: f64::INFINITY,
@@ -152,7 +203,11 @@ impl<const D: usize> NernstPlanckSimulation<D> {
             integrator: Integrator::Implicit,
         };
         let run = RunState::new(scene, stable, STAGES)?;
-        let initial_totals = totals(&fields, volumes);
+        let active_volumes = match &multigrid {
+            Some(g) => g.active_volumes(volumes),
+            None => volumes.to_vec(),
+        };
+        let initial_totals = totals(&fields, &active_volumes);
         let species_ranges = fields
             .concentration
             .iter()
@@ -167,23 +222,100 @@ impl<const D: usize> NernstPlanckSimulation<D> {
         let potential_range = manufactured.map_or(DEFAULT_POTENTIAL_RANGE, |m| {
             m.potential.abs().max(f64::MIN_POSITIVE)
         });
+        let sites = sites(&discretization.families, &fields.phase);
+        let initial_solid_volume = solid_volume(&fields.phase, &active_volumes);
         Ok(NernstPlanckSimulation {
             spec,
             discretization,
+            multigrid,
             bonds,
             laws,
             fields,
             solver,
             sources,
+            manufactured_sources,
             poisson_source,
             report: StepReport::default(),
             free,
+            active_volumes,
+            sites,
+            overpotential: vec![0.0; n],
+            initial_solid_volume,
             initial_totals,
             species_ranges,
             potential_range,
             run,
             events: Vec::new(),
         })
+    }
+
+    /// The relative volume loss V_L = 1 − V_solid(t)/V_solid(0) over active nodes (§1.6).
+    pub fn volume_loss(&self) -> f64 {
+        if self.initial_solid_volume > 0.0 {
+            1.0 - solid_volume(&self.fields.phase, &self.active_volumes) / self.initial_solid_volume
+        } else {
+            0.0
+        }
+    }
+
+    /// Each species' Σ C V over active nodes.
+    pub fn totals(&self) -> Vec<f64> {
+        totals(&self.fields, &self.active_volumes)
+    }
+
+    /// η (3.102)–(3.103) at interface sites, the metal's Butler–Volmer interface
+    /// diffusivity (3.92) at solid ones, and every species' linearized reaction (3.98)–(3.101),
+    /// all from the state at t^n.
+    fn update_reactions(&mut self) {
+        let Some(law) = &self.spec.reactions else {
+            return;
+        };
+        let thermal = self.bonds.thermal;
+        let z = |k: usize| self.laws[k].valence;
+        let z1 = z(law.metal);
+        let f = &self.fields;
+        let c = &f.concentration;
+        let sites = &self.sites;
+        self.overpotential
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, eta)| {
+                *eta = if sites[i] == Site::Interface {
+                    law.overpotential(c[law.metal][i], f.potential[i], thermal, z1)
+                } else {
+                    0.0
+                };
+            });
+        if let Some((_, d)) = &mut self.fields.interface_diffusivity {
+            let fallback = self.laws[law.metal].interface;
+            for (i, d) in d.iter_mut().enumerate() {
+                *d = if sites[i] == Site::Interface {
+                    law.interface_diffusivity(self.overpotential[i], thermal, z1)
+                        .unwrap_or(fallback)
+                } else {
+                    fallback
+                };
+            }
+        }
+        let f = &self.fields;
+        let species = self.laws.len();
+        let mut node = vec![[0.0; 2]; species];
+        for i in 0..self.discretization.len() {
+            law.sources(
+                sites[i],
+                |k| f.concentration[k][i],
+                z,
+                self.overpotential[i],
+                thermal,
+                &mut node,
+            );
+            for (k, s) in node.iter().enumerate() {
+                self.sources[k][i] = match &self.manufactured_sources {
+                    Some(m) => [m[k][i][0] + s[0], m[k][i][1] + s[1]],
+                    None => *s,
+                };
+            }
+        }
     }
 
     /// Relative ℓ² errors against the manufactured solution over the free (not held) nodes:
@@ -235,6 +367,7 @@ impl<const D: usize> NernstPlanckSimulation<D> {
             }
         }
         if changed > 0 {
+            self.sites = sites(&self.discretization.families, &self.fields.phase);
             self.events.push(format!(
                 "{changed} nodes turned liquid (C₁ < {saturation:e})"
             ));
@@ -258,7 +391,8 @@ fn explicit_bound<const D: usize>(
                     .range(i)
                     .map(|b| {
                         let j = families.neighbors[b] as usize;
-                        2.0 * law.diffusivity(f.phase[i], f.phase[j]) * bonds.diffusion[b]
+                        2.0 * law.diffusivity(f.phase[i], f.phase[j]).max(law.interface)
+                            * bonds.diffusion[b]
                     })
                     .sum::<f64>()
             })
@@ -269,6 +403,50 @@ fn explicit_bound<const D: usize>(
     } else {
         f64::INFINITY
     }
+}
+
+/// The discrete operator of the grid (borrowing its parts, so the fields stay free).
+fn operator<'a, const D: usize>(
+    d: &'a Discretization<D>,
+    bonds: &'a NnppBonds,
+    laws: &'a [SpeciesLaw],
+    spec: &NernstPlanckSpec,
+) -> NnppOperator<'a> {
+    NnppOperator {
+        families: &d.families,
+        bonds,
+        species: laws,
+        conductivity: spec.conductivity,
+        concentration_unit: spec.concentration_unit,
+    }
+}
+
+/// Each node's reaction site: bulk solid or liquid (its whole family shares its phase) or
+/// interface.
+fn sites(families: &Families, phase: &[Phase]) -> Vec<Site> {
+    (0..families.node_count())
+        .into_par_iter()
+        .map(|i| {
+            let p = phase[i];
+            let mixed = families
+                .range(i)
+                .any(|b| phase[families.neighbors[b] as usize] != p);
+            match (mixed, p.is_solid()) {
+                (true, _) => Site::Interface,
+                (false, true) => Site::BulkSolid,
+                (false, false) => Site::BulkLiquid,
+            }
+        })
+        .collect()
+}
+
+fn solid_volume(phase: &[Phase], volumes: &[f64]) -> f64 {
+    phase
+        .iter()
+        .zip(volumes)
+        .filter(|(p, _)| p.is_solid())
+        .map(|(_, v)| v)
+        .sum()
 }
 
 fn totals(f: &NnppFields, volumes: &[f64]) -> Vec<f64> {
@@ -283,17 +461,15 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
         let mut lap = Lap::start();
         let dt = self.run.clock.dt();
         // The operator borrows self's grid and bonds; the fields and solver are disjoint.
-        let op = NnppOperator {
-            families: &self.discretization.families,
-            bonds: &self.bonds,
-            species: &self.laws,
-            conductivity: self.spec.conductivity,
-        };
+        let op = operator(&self.discretization, &self.bonds, &self.laws, &self.spec);
         self.report.poisson_residual = self
             .solver
             .solve_potential(&op, &mut self.fields, &self.poisson_source)
             .map_err(|e| SimError::Solve(format!("Poisson: {e}")))?;
         lap.charge(&mut self.run.stages, POISSON);
+        self.update_reactions();
+        lap.charge(&mut self.run.stages, REACTIONS);
+        let op = operator(&self.discretization, &self.bonds, &self.laws, &self.spec);
         self.solver
             .step_species(&op, &mut self.fields, dt, &self.sources, &mut self.report)
             .map_err(|e| SimError::Solve(format!("species: {e}")))?;
@@ -349,14 +525,38 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
             values: self.fields.potential.clone(),
             range: (-self.potential_range, self.potential_range),
         });
-        let volumes = self.discretization.nodes.volumes();
-        let mut scalars = vec![("residual/poisson".to_string(), self.report.poisson_residual)];
-        for (k, (law, total)) in self
-            .laws
-            .iter()
-            .zip(totals(&self.fields, volumes))
-            .enumerate()
-        {
+        if self.spec.reactions.is_some() {
+            fields.push(NodeField {
+                name: "overpotential".into(),
+                values: self.overpotential.clone(),
+                range: (0.0, OVERPOTENTIAL_RANGE),
+            });
+        }
+        let mut scalars = vec![
+            ("residual/poisson".to_string(), self.report.poisson_residual),
+            (
+                "linear/iterations/poisson".to_string(),
+                self.report.poisson_iterations as f64,
+            ),
+        ];
+        if self.initial_solid_volume > 0.0 {
+            scalars.push(("corrosion/volume_loss".into(), self.volume_loss()));
+        }
+        if self.spec.reactions.is_some() {
+            let at: Vec<f64> = self
+                .overpotential
+                .iter()
+                .zip(&self.sites)
+                .filter(|(_, s)| **s == Site::Interface)
+                .map(|(e, _)| *e)
+                .collect();
+            if !at.is_empty() {
+                let mean = at.iter().sum::<f64>() / at.len() as f64;
+                scalars.push(("interface/overpotential/mean".into(), mean));
+                scalars.push(("interface/nodes".into(), at.len() as f64));
+            }
+        }
+        for (k, (law, total)) in self.laws.iter().zip(self.totals()).enumerate() {
             let initial = self.initial_totals[k];
             scalars.push((format!("species/{}/total", law.name), total));
             if initial != 0.0 {
@@ -375,6 +575,10 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
                     format!("newton/iterations/{}", law.name),
                     self.report.iterations[k] as f64,
                 ));
+                scalars.push((
+                    format!("linear/iterations/{}", law.name),
+                    self.report.linear_iterations[k] as f64,
+                ));
             }
         }
         if let Some(errors) = self.errors() {
@@ -387,16 +591,26 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
             ));
         }
         scalars.extend(self.run.timing_scalars());
+        let mut classes = vec![Phase::field(&self.fields.phase)];
+        let mut radii = Vec::new();
+        if let Some(g) = &self.multigrid {
+            classes.push(GridClass::field(&g.class));
+            radii = GridClass::radii(&g.class, g.coarse.spacing, g.fine.spacing);
+            let (coarse, fine, fictitious) = g.counts();
+            scalars.push(("nodes/coarse_active".into(), coarse as f64));
+            scalars.push(("nodes/fine_active".into(), fine as f64));
+            scalars.push(("nodes/fictitious".into(), fictitious as f64));
+        }
         Frame {
             step: self.run.clock.step(),
             time: self.run.clock.time(),
             dim: D,
             positions,
             fields,
-            classes: vec![Phase::field(&self.fields.phase)],
+            classes,
             events: std::mem::take(&mut self.events),
             scalars,
-            radii: Vec::new(),
+            radii,
         }
     }
 
@@ -451,11 +665,10 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
                 _ => Err(format!("phase: node {i} has no phase {p}")),
             })
             .collect::<Result<Vec<_>, _>>()?;
-        self.fields = NnppFields {
-            concentration,
-            potential,
-            phase,
-        };
+        self.fields.concentration = concentration;
+        self.fields.potential = potential;
+        self.fields.phase = phase;
+        self.sites = sites(&self.discretization.families, &self.fields.phase);
         self.run.clock = clock;
         Ok(())
     }

@@ -13,11 +13,12 @@
 //! first nodes solid (φ = 0 there, the Poisson equation's Dirichlet part).
 
 use peridyn::adapt::masks::Phase;
-use peridyn::discretization::{Families, Quadrature};
+use peridyn::discretization::{Families, Interpolation, Quadrature};
 use peridyn::integrate::newton::{SemiImplicit, StepReport};
 use peridyn::model::nernst_planck::NnppKernel;
 use peridyn::model::pmb::Influence;
 use peridyn::scheme::nnpp::{LinearSource, NnppBonds, NnppFields, NnppOperator, SpeciesLaw};
+use peridyn::sparse::LinearMethod;
 
 const NODES: usize = 101;
 const SPACING: f64 = 50e-6;
@@ -46,7 +47,7 @@ impl Line {
         };
         let kernel = NnppKernel::new(1, Influence::Constant, horizon, [0.0, 0.0, 0.0])
             .expect("a valid kernel");
-        let bonds = NnppBonds::new(&kernel, &families, &volumes, &quadrature, 298.15);
+        let bonds = NnppBonds::new(&kernel, &families, &volumes, &|_| quadrature, 298.15);
         let law = |name: &str, valence: f64, liquid: f64| SpeciesLaw {
             name: name.into(),
             valence,
@@ -68,6 +69,7 @@ impl Line {
             bonds: &self.bonds,
             species: &self.species,
             conductivity: CONDUCTIVITY,
+            concentration_unit: 1.0,
         }
     }
 
@@ -81,6 +83,7 @@ impl Line {
                 (0..NODES).map(|i| 2.0 + 0.6 * (tau * x(i)).cos()).collect(),
             ],
             potential: vec![0.0; NODES],
+            interface_diffusivity: None,
             phase: (0..NODES)
                 .map(|i| {
                     if i < SOLID {
@@ -163,7 +166,13 @@ fn max_abs(v: &[f64]) -> f64 {
 fn species_totals_are_conserved_with_electromigration() {
     let line = Line::new();
     let mut f = line.fields();
-    let mut solver = SemiImplicit::new(&line.families, vec![false; NODES], &f.phase);
+    let mut solver = SemiImplicit::new(
+        &line.families,
+        vec![false; NODES],
+        &f.phase,
+        Interpolation::new(),
+        LinearMethod::Direct,
+    );
     let before = line.totals(&f);
     let dt = 10.0;
     let sources = no_sources(2);
@@ -198,7 +207,13 @@ fn species_totals_are_conserved_with_electromigration() {
 fn one_newton_iteration_solves_linear_rate_laws() {
     let line = Line::new();
     let mut f = line.fields();
-    let mut solver = SemiImplicit::new(&line.families, vec![false; NODES], &f.phase);
+    let mut solver = SemiImplicit::new(
+        &line.families,
+        vec![false; NODES],
+        &f.phase,
+        Interpolation::new(),
+        LinearMethod::Direct,
+    );
     // A first-order consumption of the cation and a constant production of the anion.
     let sources = vec![vec![[1e-4, -2e-4]; NODES], vec![[3e-5, 0.0]; NODES]];
     for _ in 0..3 {
@@ -222,7 +237,13 @@ fn implicit_and_explicit_euler_agree_to_first_order() {
         let dt = end_time / steps as f64;
         let run = |implicit: bool| {
             let mut f = start.clone();
-            let mut solver = SemiImplicit::new(&line.families, vec![false; NODES], &f.phase);
+            let mut solver = SemiImplicit::new(
+                &line.families,
+                vec![false; NODES],
+                &f.phase,
+                Interpolation::new(),
+                LinearMethod::Direct,
+            );
             for _ in 0..steps {
                 step(&line, &mut solver, &mut f, dt, &sources, implicit);
             }
@@ -262,7 +283,13 @@ fn implicit_step_is_bounded_at_three_hours_where_explicit_diverges() {
         .fold(0.0, f64::max);
     let run = |implicit: bool| {
         let mut f = start.clone();
-        let mut solver = SemiImplicit::new(&line.families, vec![false; NODES], &f.phase);
+        let mut solver = SemiImplicit::new(
+            &line.families,
+            vec![false; NODES],
+            &f.phase,
+            Interpolation::new(),
+            LinearMethod::Direct,
+        );
         for _ in 0..40 {
             step(&line, &mut solver, &mut f, dt, &sources, implicit);
 
@@ -331,8 +358,15 @@ fn linear_potential_between_held_ends_is_reproduced() {
             .map(|i| if held[i] { exact(i) } else { 0.0 })
             .collect(),
         phase: vec![Phase::Liquid; NODES],
+        interface_diffusivity: None,
     };
-    let mut solver = SemiImplicit::new(&line.families, held, &f.phase);
+    let mut solver = SemiImplicit::new(
+        &line.families,
+        held,
+        &f.phase,
+        Interpolation::new(),
+        LinearMethod::Direct,
+    );
     let residual = solver
         .solve_potential(&line.operator(), &mut f, &vec![0.0; NODES])
         .expect("Poisson solve");
