@@ -87,11 +87,14 @@ impl ReactionLaw {
     }
 
     /// The metal's interface-bond diffusivity at overpotential η, if it follows (3.92).
+    /// Choice: floored at 0. (3.92) turns negative for η < 0 (cathodic), and a negative bond
+    /// diffusivity makes the operator anti-diffusive (ill-posed; BiCGSTAB diverges on it);
+    /// the thesis's runs stay anodic (η ≥ 138 mV with Table 3.7's potentials).
     pub fn interface_diffusivity(&self, eta: f64, thermal: f64, z1: f64) -> Option<f64> {
         let bv = self.butler_volmer?;
         let x = z1 * thermal * eta;
         let e = |a: f64| (a * x).clamp(-MAX_EXPONENT, MAX_EXPONENT).exp();
-        Some(bv.exchange * (e(bv.anodic) - e(-bv.cathodic)))
+        Some((bv.exchange * (e(bv.anodic) - e(-bv.cathodic))).max(0.0))
     }
 
     /// Writes each species' linearized rate at one node into `out` (zero for species without
@@ -195,6 +198,8 @@ mod tests {
         let d = l.interface_diffusivity(0.1, thermal, 2.19).unwrap();
         let x = 2.19 * thermal * 0.1;
         assert!((d - 1e-15 * ((0.5 * x).exp() - (-0.5 * x).exp())).abs() < 1e-27);
+        // Cathodic: no negative diffusivity.
+        assert_eq!(l.interface_diffusivity(-0.1, thermal, 2.19), Some(0.0));
     }
 
     /// The linearized sources: with C^{n+1} = C^n they give the rate laws; the exchange

@@ -62,6 +62,7 @@ const PRESETS: &[(&str, &str)] = &[
         "nnpp-1d-manufactured",
         include_str!("../../presets/nnpp-1d-manufactured.toml"),
     ),
+    ("nnpp-screw", include_str!("../../presets/nnpp-screw.toml")),
     ("screw-3d", include_str!("../../presets/screw-3d.toml")),
     (
         "static-1d-manufactured",

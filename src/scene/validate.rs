@@ -158,12 +158,12 @@ pub(super) fn validate(
     let hybrid = hybrid(p, ctx, scheme.kind, spacing, horizon)?;
     let nernst_planck = super::nernst_planck::nernst_planck(p, ctx, dim, horizon)?;
     if physics == Physics::NernstPlanck
-        && (scheme.kind != SchemeKind::Standard || p.multigrid.is_some() || p.absorbing.is_some())
+        && (scheme.kind != SchemeKind::Standard || p.absorbing.is_some())
     {
         return Err(ctx.error(
             "discretization.scheme",
-            "physics = \"nernst-planck\" runs the standard scheme on one grid (multi-grid \
-             NNPP is not built yet), without an absorbing layer",
+            "physics = \"nernst-planck\" runs the standard scheme (on one grid or a \
+             multi-grid with a predefined fine region), without an absorbing layer",
         ));
     }
     if physics == Physics::Corrosion
@@ -475,7 +475,7 @@ fn multigrid(
         (m.fit_weight.is_some(), "fit_weight"),
     ];
     let refinement = match physics {
-        Physics::Diffusion | Physics::Corrosion => {
+        Physics::Diffusion | Physics::Corrosion | Physics::NernstPlanck => {
             let switch_fields = [
                 (m.band.is_some(), "band"),
                 (m.chi.is_some(), "chi"),
@@ -485,15 +485,16 @@ fn multigrid(
                 if given {
                     return Err(ctx.error(
                         &format!("multigrid.{field}"),
-                        "belongs to the multi-adaptive switch of dynamics; diffusion and \
-                         corrosion refine the predefined `region`",
+                        "belongs to the multi-adaptive switch of dynamics; diffusion, \
+                         corrosion and nernst-planck refine the predefined `region`",
                     ));
                 }
             }
             let Some(region) = &m.region else {
                 return Err(ctx.error(
                     "multigrid.region",
-                    "is missing: diffusion and corrosion refine a predefined region",
+                    "is missing: diffusion, corrosion and nernst-planck refine a predefined \
+                     region",
                 ));
             };
             let region = region
@@ -530,10 +531,11 @@ fn multigrid(
                 transfer: m.transfer.unwrap_or_default(),
             }
         }
-        Physics::Static | Physics::ScalarWave | Physics::NernstPlanck => {
+        Physics::Static | Physics::ScalarWave => {
             return Err(ctx.error(
                 "multigrid",
-                "two grid levels are available for dynamics, diffusion and corrosion",
+                "two grid levels are available for dynamics, diffusion, corrosion and \
+                 nernst-planck",
             ));
         }
     };

@@ -13,7 +13,7 @@ use crate::frame::{Frame, NodeField};
 use crate::integrate::newton::{SemiImplicit, StepReport};
 use crate::model::nnpp_reactions::Site;
 use crate::scene::nernst_planck::NernstPlanckSpec;
-use crate::scene::{Condition, Scene, SceneError};
+use crate::scene::{CoarseScheme, Condition, Scene, SceneError};
 use crate::scheme::nnpp::{LinearSource, NnppBonds, NnppFields, NnppOperator, SpeciesLaw};
 use crate::solver::{
     Clock, Integrator, Lap, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
@@ -67,6 +67,12 @@ impl<const D: usize> NernstPlanckSimulation<D> {
         };
         let (discretization, multigrid) = match &scene.multigrid {
             None => (Discretization::<D>::of_scene(scene)?, None),
+            Some(m) if m.coarse != CoarseScheme::Standard => {
+                return Err(scene.error(
+                    "multigrid.coarse",
+                    "the NNPP multi-grid runs the standard scheme on both levels",
+                ));
+            }
             Some(m) => {
                 let mut grid = MultiGrid::<D>::build(scene, m)?;
                 let positions = std::mem::take(&mut grid.positions);
@@ -541,6 +547,12 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
         ];
         if self.initial_solid_volume > 0.0 {
             scalars.push(("corrosion/volume_loss".into(), self.volume_loss()));
+            let solid = (self.fields.phase.iter().zip(&self.active_volumes))
+                .filter(|(p, v)| p.is_solid() && **v > 0.0)
+                .count();
+            scalars.push(("corrosion/solid_nodes".into(), solid as f64));
+            // The summary's mass: Σ C V of the first species (the metal).
+            scalars.push(("field/integral".into(), self.totals()[0]));
         }
         if self.spec.reactions.is_some() {
             let at: Vec<f64> = self

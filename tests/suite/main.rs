@@ -22,6 +22,7 @@ mod multiadaptive;
 mod multigrid;
 mod nnpp;
 mod nnpp_scene;
+mod nnpp_screw;
 mod nnpp_step;
 mod operators;
 mod panel;
