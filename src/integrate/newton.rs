@@ -94,6 +94,14 @@ impl SemiImplicit {
         )
     }
 
+    /// Entries of the species and the Poisson matrices (the cost of one product each).
+    pub fn entries(&self) -> (usize, usize) {
+        (
+            self.species.matrix.values.len(),
+            self.poisson.matrix.values.len(),
+        )
+    }
+
     pub fn species_unknowns(&self) -> &Unknowns {
         &self.species.unknowns
     }

@@ -112,6 +112,8 @@ pub struct FamilySystem {
     pub constraints: Interpolation,
     /// Per unknown row: its constraint row, or u32::MAX for a family row.
     constrained: Vec<u32>,
+    /// The factor of the constraint rows at the last fill (residuals use it too).
+    pub constraint_scale: f64,
     diagonal: Vec<usize>,
     /// Per directed bond of the family rows, in the rows' order: the entry or usize::MAX.
     bond_entry: Vec<usize>,
@@ -169,6 +171,7 @@ impl FamilySystem {
             matrix,
             constraints: constraints.clone(),
             constrained,
+            constraint_scale: 1.0,
             diagonal,
             bond_entry,
             bond_offsets,
@@ -183,22 +186,22 @@ impl FamilySystem {
     }
 
     /// Fills the matrix row by row: `row(i, add)` calls `add(entry, value)` with `entry` the
-    /// diagonal (None) or a bond's index in the families' CSR; constraint rows get
-    /// `constraint_scale` (1 − Σ w …) without calling `row`.
+    /// diagonal (None) or a bond's index in the families' CSR. Constraint rows get
+    /// s (1, −w …) without calling `row`, s the family rows' mean |diagonal| (kept in
+    /// `constraint_scale`): rows of one magnitude keep the Jacobi-scaled system balanced.
     fn fill(
         &mut self,
         families: &Families,
-        constraint_scale: f64,
         row: impl Fn(usize, &mut dyn FnMut(Option<usize>, f64)) + Sync,
     ) {
         let FamilySystem {
             unknowns,
             matrix,
-            constraints,
             constrained,
             diagonal,
             bond_entry,
             bond_offsets,
+            ..
         } = self;
         matrix.values.iter_mut().for_each(|v| *v = 0.0);
         // Rows own disjoint value ranges: split them once per fill.
@@ -210,26 +213,11 @@ impl FamilySystem {
             rest = tail;
         }
         let offsets = &matrix.offsets;
-        let columns = &matrix.columns;
         slices.into_par_iter().enumerate().for_each(|(r, values)| {
-            let start = offsets[r];
             if constrained[r] != u32::MAX {
-                let cols = &columns[start..offsets[r + 1]];
-                let mut put = |column: usize, value: f64| {
-                    if let Ok(e) = cols.binary_search(&column) {
-                        values[e] += value;
-                    }
-                };
-                put(r, constraint_scale);
-                let (sources, weights) = constraints.row(constrained[r] as usize);
-                for (&s, &w) in sources.iter().zip(weights) {
-                    let u = unknowns.index[s as usize];
-                    if u != u32::MAX {
-                        put(u as usize, -constraint_scale * w);
-                    }
-                }
                 return;
             }
+            let start = offsets[r];
             let i = unknowns.nodes[r] as usize;
             let first = families.offsets[i];
             let entries = &bond_entry[bond_offsets[r]..bond_offsets[r + 1]];
@@ -243,6 +231,35 @@ impl FamilySystem {
                 }
             });
         });
+        let (sum, count) = (0..unknowns.len())
+            .filter(|&r| constrained[r] == u32::MAX && diagonal[r] != usize::MAX)
+            .fold((0.0, 0usize), |(s, c), r| {
+                (s + matrix.values[diagonal[r]].abs(), c + 1)
+            });
+        let scale = if count > 0 && sum > 0.0 {
+            sum / count as f64
+        } else {
+            1.0
+        };
+        self.constraint_scale = scale;
+        for r in 0..self.unknowns.len() {
+            let k = self.constrained[r];
+            if k == u32::MAX {
+                continue;
+            }
+            let (sources, weights) = self.constraints.row(k as usize);
+            if let Some(e) = self.matrix.entry(r, r) {
+                self.matrix.values[e] += scale;
+            }
+            for (&s, &w) in sources.iter().zip(weights) {
+                let u = self.unknowns.index[s as usize];
+                if u != u32::MAX
+                    && let Some(e) = self.matrix.entry(r, u as usize)
+                {
+                    self.matrix.values[e] -= scale * w;
+                }
+            }
+        }
     }
 
     /// Σ w v over the known (not unknown) sources of constraint row `k`.
@@ -338,7 +355,7 @@ impl NnppOperator<'_> {
     ) {
         let law = &self.species[k];
         let zf = law.valence * self.bonds.thermal;
-        system.fill(self.families, 1.0 / dt, |i, add| {
+        system.fill(self.families, |i, add| {
             let mut diag = 1.0 / dt - sources[i][1];
             for b in self.families.range(i) {
                 let j = self.families.neighbors[b] as usize;
@@ -353,7 +370,8 @@ impl NnppOperator<'_> {
     }
 
     /// The residual (3.11) of species k at the iterate `f.concentration[k]` on the unknown
-    /// rows: (C − C^n)/Δt − Σ … − R; on constraint rows (C_t − Σ w C_s)/Δt.
+    /// rows: (C − C^n)/Δt − Σ … − R; on constraint rows s (C_t − Σ w C_s), s the scale of the
+    /// last Jacobian fill.
     pub fn species_residual(
         &self,
         system: &FamilySystem,
@@ -370,7 +388,9 @@ impl NnppOperator<'_> {
             .for_each(|(r, (o, &i))| {
                 let i = i as usize;
                 *o = match system.constraint(r) {
-                    Some(row) => (c[i] - system.constraints.value(row, c)) / dt,
+                    Some(row) => {
+                        system.constraint_scale * (c[i] - system.constraints.value(row, c))
+                    }
                     None => {
                         let reaction = sources[i][0] + sources[i][1] * c[i];
                         (c[i] - old[i]) / dt - self.species_rate(k, i, f) - reaction
@@ -389,7 +409,7 @@ impl NnppOperator<'_> {
         rhs: &mut [f64],
     ) {
         let sigma = self.conductivity;
-        system.fill(self.families, 1.0, |i, add| {
+        system.fill(self.families, |i, add| {
             let mut diag = 0.0;
             for b in self.families.range(i) {
                 let w = self.bonds.poisson[b] * sigma;
@@ -404,7 +424,7 @@ impl NnppOperator<'_> {
             .enumerate()
             .for_each(|(row, (r, &i))| {
                 if let Some(k) = system.constraint(row) {
-                    *r = system.known_part(k, &f.potential);
+                    *r = system.constraint_scale * system.known_part(k, &f.potential);
                     return;
                 }
                 let i = i as usize;

@@ -355,6 +355,11 @@ impl<const D: usize> NernstPlanckSimulation<D> {
         &self.fields
     }
 
+    /// Entries of the species and the Poisson matrices.
+    pub fn system_entries(&self) -> (usize, usize) {
+        self.solver.entries()
+    }
+
     pub fn report(&self) -> &StepReport {
         &self.report
     }
