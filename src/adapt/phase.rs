@@ -65,7 +65,8 @@ impl PhaseChange {
     }
 }
 
-fn solid_volume(phase: &[Phase], volumes: &[f64]) -> f64 {
+/// Σ ΔV over the solid nodes (`volumes`: 0 where a node does not count).
+pub fn solid_volume(phase: &[Phase], volumes: &[f64]) -> f64 {
     phase
         .iter()
         .zip(volumes)

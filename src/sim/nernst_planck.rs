@@ -8,6 +8,7 @@ use rayon::prelude::*;
 
 use crate::adapt::masks::{GridClass, Phase};
 use crate::adapt::multigrid::MultiGrid;
+use crate::adapt::phase::solid_volume;
 use crate::discretization::{Discretization, Families, Interpolation};
 use crate::frame::{Frame, NodeField};
 use crate::integrate::newton::{SemiImplicit, StepReport};
@@ -449,15 +450,6 @@ fn sites(families: &Families, phase: &[Phase]) -> Vec<Site> {
             }
         })
         .collect()
-}
-
-fn solid_volume(phase: &[Phase], volumes: &[f64]) -> f64 {
-    phase
-        .iter()
-        .zip(volumes)
-        .filter(|(p, _)| p.is_solid())
-        .map(|(_, v)| v)
-        .sum()
 }
 
 fn totals(f: &NnppFields, volumes: &[f64]) -> Vec<f64> {
