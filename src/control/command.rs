@@ -34,6 +34,8 @@ pub enum Command {
     SetSplitDamage(f64),
     /// α of particle splitting (zeng2024 (16)), in (0, 1).
     SetSplitStrain(f64),
+    /// φ_applied of an NNPP scene's overpotential (3.102), in volts.
+    SetAppliedPotential(f64),
     /// A new time step; above the stable bound only with `allow_unstable`.
     SetDt {
         value: DtValue,
@@ -68,6 +70,7 @@ pub enum Command {
 
 /// The command forms, for error messages.
 pub const FORMS: &str = "play, pause, step [N], reset, set chi X, set phi_c X, set alpha X, \
+                         set potential VOLTAGE (`-300 mV`), \
                          set dt VALUE [override] \
                          (VALUE: a time like `2 ns` or `0.5 stable`), set m X [restart], \
                          set dx LENGTH [restart], set scheme NAME [restart], set every K, \
@@ -137,6 +140,11 @@ impl Command {
             ["set", "chi" | "χ", v] => Ok(Command::SetChi(number(v, "chi")?)),
             ["set", "phi_c" | "φ_c", v] => Ok(Command::SetSplitDamage(number(v, "phi_c")?)),
             ["set", "alpha" | "α", v] => Ok(Command::SetSplitStrain(number(v, "alpha")?)),
+            ["set", "potential", ..] if words.len() > 2 => {
+                let v = parse_with_unit(&rest(2), POTENTIAL_UNITS)
+                    .map_err(|e| format!("potential: {e} (e.g. `set potential -300 mV`)"))?;
+                Ok(Command::SetAppliedPotential(v))
+            }
             ["set", "every", k] => k
                 .parse::<u64>()
                 .map(Command::SetEvery)
@@ -229,6 +237,7 @@ impl Command {
 
 const TIME_UNITS: &[&str] = &["s", "ms", "us", "µs", "ns", "ps"];
 const LENGTH_UNITS: &[&str] = &["m", "cm", "mm", "um", "µm", "nm"];
+const POTENTIAL_UNITS: &[&str] = &["V", "mV", "uV", "µV"];
 
 /// A number with an optional unit from `units` (none means SI), converted to SI.
 fn parse_with_unit(text: &str, units: &[&str]) -> Result<f64, String> {
@@ -256,6 +265,7 @@ impl fmt::Display for Command {
             Command::SetChi(x) => write!(f, "set chi {x:?}"),
             Command::SetSplitDamage(x) => write!(f, "set phi_c {x:?}"),
             Command::SetSplitStrain(x) => write!(f, "set alpha {x:?}"),
+            Command::SetAppliedPotential(v) => write!(f, "set potential {v:?} V"),
             Command::SetDt {
                 value,
                 allow_unstable,
@@ -300,6 +310,8 @@ mod tests {
         for (text, command) in [
             ("set phi_c 0.35", Command::SetSplitDamage(0.35)),
             ("set α 0.25", Command::SetSplitStrain(0.25)),
+            ("set potential -300 mV", Command::SetAppliedPotential(-0.3)),
+            ("set potential 0.05", Command::SetAppliedPotential(0.05)),
         ] {
             assert_eq!(Command::parse(text).unwrap(), command);
             assert_eq!(Command::parse(&command.to_string()).unwrap(), command);

@@ -385,13 +385,16 @@ impl Driver {
         self.open_run(&scene)
     }
 
-    /// The live parameters the state holds (χ, φ_c, α) set on a rebuilt simulation, so a
+    /// The live parameters the state holds (χ, φ_c, α, φ_applied) set on a rebuilt simulation, so a
     /// rebuild keeps what the user tuned; a scene without a use for one ignores it.
     fn carry_live_parameters(&mut self) {
         let mut params = vec![Param::Chi(self.state.chi)];
         if let Some(rule) = self.state.split {
             params.push(Param::SplitDamage(rule.damage));
             params.push(Param::SplitStrain(rule.strain_factor));
+        }
+        if let Some(v) = self.state.applied_potential {
+            params.push(Param::AppliedPotential(v));
         }
         for param in params {
             // Err is the note that the scene has no use for the parameter.

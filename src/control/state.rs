@@ -93,6 +93,8 @@ pub struct ControlState {
     pub chi: f64,
     /// φ_c and α of a scene that splits particles (`None` elsewhere).
     pub split: Option<crate::scene::SplitRule>,
+    /// φ_applied of an NNPP scene with reactions (`None` elsewhere), V.
+    pub applied_potential: Option<f64>,
     pub dt: f64,
     pub stable_dt: f64,
     pub discretization: Discretization,
@@ -106,6 +108,9 @@ pub struct ControlState {
     /// Every accepted command, in order: the log stored with recordings.
     pub log: Vec<Applied>,
 }
+
+/// The largest |φ_applied| a live command takes (V): electrochemical potentials are a few volts.
+pub const MAX_APPLIED_POTENTIAL: f64 = 10.0;
 
 /// Damage at which a node counts as cracked.
 pub const CRACK_DAMAGE: f64 = 0.35;
@@ -132,6 +137,11 @@ impl ControlState {
                 .to_string(),
             variant: scene.variant.clone(),
             split: scene.state_based.as_ref().and_then(|s| s.refinement),
+            applied_potential: scene
+                .nernst_planck
+                .as_ref()
+                .and_then(|n| n.reactions.as_ref())
+                .map(|r| r.applied_potential),
             ..ControlState::new(session, info, discretization, chi)
         }
     }
@@ -151,6 +161,7 @@ impl ControlState {
             running: true,
             chi,
             split: None,
+            applied_potential: None,
             dt: info.dt,
             stable_dt: info.stable_dt,
             discretization,
@@ -278,6 +289,14 @@ impl ControlState {
                 crate::scene::check_split_strain(*alpha)?;
                 Effect::Tune(Param::SplitStrain(*alpha))
             }
+            Command::SetAppliedPotential(v) => {
+                if !(v.is_finite() && v.abs() <= MAX_APPLIED_POTENTIAL) {
+                    return Err(format!(
+                        "potential: a voltage within ±{MAX_APPLIED_POTENTIAL} V, got {v}"
+                    ));
+                }
+                Effect::Tune(Param::AppliedPotential(*v))
+            }
             Command::SetDt {
                 value,
                 allow_unstable,
@@ -389,6 +408,11 @@ impl ControlState {
             Command::SetSplitStrain(alpha) => {
                 if let Some(rule) = &mut self.split {
                     rule.strain_factor = *alpha;
+                }
+            }
+            Command::SetAppliedPotential(v) => {
+                if let Some(p) = &mut self.applied_potential {
+                    *p = *v;
                 }
             }
             Command::SetDt { .. } => {

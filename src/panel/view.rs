@@ -14,6 +14,8 @@ pub struct PanelInputs {
     /// φ_c and α of a scene that splits particles.
     pub split_damage: f64,
     pub split_strain: f64,
+    /// φ_applied of an NNPP scene with reactions, in mV.
+    pub applied_potential_mv: f64,
     pub dt_text: String,
     pub dt_override: bool,
     pub m: f64,
@@ -94,6 +96,9 @@ impl PanelInputs {
         if let Some(rule) = state.split {
             self.split_damage = rule.damage;
             self.split_strain = rule.strain_factor;
+        }
+        if let Some(v) = state.applied_potential {
+            self.applied_potential_mv = v * 1e3;
         }
         self.dt_text = format!("{:.4} ns", state.dt * 1e9);
         self.m = d.m;
@@ -261,6 +266,23 @@ fn live_parameters(
                 .labelled_by(label.id);
             if settled(&slider) && inputs.split_strain != rule.strain_factor {
                 out.push(Command::SetSplitStrain(inputs.split_strain));
+            }
+            ui.end_row();
+        }
+
+        if let Some(v) = state.applied_potential {
+            // Table 3.7's φ_applied is −300 mV (SHE); a few hundred mV either way.
+            let label = ui.label("φ_applied (mV)");
+            let slider = ui
+                .add(
+                    egui::Slider::new(&mut inputs.applied_potential_mv, -1000.0..=1000.0)
+                        .fixed_decimals(0),
+                )
+                .labelled_by(label.id);
+            if settled(&slider) && inputs.applied_potential_mv != v * 1e3 {
+                out.push(Command::SetAppliedPotential(
+                    inputs.applied_potential_mv * 1e-3,
+                ));
             }
             ui.end_row();
         }

@@ -1060,6 +1060,7 @@ impl Stepper for DualHorizonSimulation {
             Param::Chi(_) => {
                 return Err("a dual-horizon scene has no hybrid scheme: χ is recorded only".into());
             }
+            Param::AppliedPotential(_) => return Err(param.unused_note().into()),
         }
         Ok(())
     }

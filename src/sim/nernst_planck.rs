@@ -17,7 +17,7 @@ use crate::scene::nernst_planck::NernstPlanckSpec;
 use crate::scene::{CoarseScheme, Condition, Scene, SceneError};
 use crate::scheme::nnpp::{LinearSource, NnppBonds, NnppFields, NnppOperator, SpeciesLaw};
 use crate::solver::{
-    Clock, Integrator, Lap, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
+    Clock, Integrator, Lap, Param, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
 };
 
 const STAGES: &[&str] = &["poisson", "reactions", "species", "phase_change"];
@@ -680,6 +680,17 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
         self.sites = sites(&self.discretization.families, &self.fields.phase);
         self.run.clock = clock;
         Ok(())
+    }
+
+    /// φ_applied acts in place from the next step's overpotential on.
+    fn tune(&mut self, param: Param) -> Result<(), String> {
+        match (param, self.spec.reactions.as_mut()) {
+            (Param::AppliedPotential(v), Some(r)) => {
+                r.applied_potential = v;
+                Ok(())
+            }
+            (param, _) => Err(param.unused_note().into()),
+        }
     }
 
     fn relative_error(&self) -> Option<f64> {

@@ -126,6 +126,8 @@ pub enum Param {
     SplitDamage(f64),
     /// α of particle splitting, zeng2024 (16).
     SplitStrain(f64),
+    /// φ_applied of the NNPP overpotential (3.102), V.
+    AppliedPotential(f64),
 }
 
 impl Param {
@@ -135,6 +137,10 @@ impl Param {
             Param::Chi(_) => "this scene has no hybrid scheme: χ is recorded only",
             Param::SplitDamage(_) | Param::SplitStrain(_) => {
                 "this scene has no particle splitting ([refinement]): φ_c and α are recorded only"
+            }
+            Param::AppliedPotential(_) => {
+                "this scene has no NNPP reactions ([nernst_planck.reactions]): the applied \
+                 potential is recorded only"
             }
         }
     }
