@@ -17,7 +17,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 use super::masks::GridClass;
-use crate::discretization::{Families, Interpolation, Lattice, Quadrature, family};
+use crate::discretization::{Discretization, Families, Interpolation, Lattice, Quadrature, family};
 use crate::scene::{MultigridSpec, Refinement, Scene, SceneError};
 
 /// The two levels' nodes in one index space, and the fictitious nodes' interpolation.
@@ -227,6 +227,20 @@ impl<const D: usize> MultiGrid<D> {
             },
             interpolation,
         })
+    }
+
+    /// The two levels of `scene` as one discretization (their positions, volumes and
+    /// families moved into it) and the levels' classes and interpolation.
+    pub fn discretize(
+        scene: &Scene,
+        spec: &MultigridSpec,
+    ) -> Result<(Discretization<D>, MultiGrid<D>), SceneError> {
+        let mut grid = MultiGrid::<D>::build(scene, spec)?;
+        let positions = std::mem::take(&mut grid.positions);
+        let volumes = std::mem::take(&mut grid.volumes);
+        let families = std::mem::take(&mut grid.families);
+        let d = Discretization::of_nodes(scene, positions, volumes, families)?;
+        Ok((d, grid))
     }
 
     /// Node counts: (coarse active, fine active, fictitious of both levels).

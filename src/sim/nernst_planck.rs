@@ -75,11 +75,7 @@ impl<const D: usize> NernstPlanckSimulation<D> {
                 ));
             }
             Some(m) => {
-                let mut grid = MultiGrid::<D>::build(scene, m)?;
-                let positions = std::mem::take(&mut grid.positions);
-                let volumes = std::mem::take(&mut grid.volumes);
-                let families = std::mem::take(&mut grid.families);
-                let d = Discretization::of_nodes(scene, positions, volumes, families)?;
+                let (d, grid) = MultiGrid::<D>::discretize(scene, m)?;
                 (d, Some(grid))
             }
         };

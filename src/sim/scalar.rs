@@ -271,11 +271,7 @@ impl<const D: usize> ScalarSimulation<D> {
         let (mut discretization, multigrid) = match &scene.multigrid {
             None => (Discretization::<D>::of_scene(scene)?, None),
             Some(spec) => {
-                let mut grid = MultiGrid::<D>::build(scene, spec)?;
-                let positions = std::mem::take(&mut grid.positions);
-                let volumes = std::mem::take(&mut grid.volumes);
-                let families = std::mem::take(&mut grid.families);
-                let d = Discretization::of_nodes(scene, positions, volumes, families)?;
+                let (d, grid) = MultiGrid::<D>::discretize(scene, spec)?;
                 (d, Some(grid))
             }
         };

@@ -74,6 +74,17 @@ impl Line {
     }
 
     /// Smooth, charged initial fields; the first `SOLID` nodes solid.
+    /// The semi-implicit solver of this one-grid line (sparse LU) with `held` nodes.
+    fn solver(&self, held: Vec<bool>, phase: &[Phase]) -> SemiImplicit {
+        SemiImplicit::new(
+            &self.families,
+            held,
+            phase,
+            Interpolation::new(),
+            LinearMethod::Direct,
+        )
+    }
+
     fn fields(&self) -> NnppFields {
         let x = |i: usize| i as f64 / (NODES - 1) as f64;
         let tau = std::f64::consts::TAU;
@@ -166,13 +177,7 @@ fn max_abs(v: &[f64]) -> f64 {
 fn species_totals_are_conserved_with_electromigration() {
     let line = Line::new();
     let mut f = line.fields();
-    let mut solver = SemiImplicit::new(
-        &line.families,
-        vec![false; NODES],
-        &f.phase,
-        Interpolation::new(),
-        LinearMethod::Direct,
-    );
+    let mut solver = line.solver(vec![false; NODES], &f.phase);
     let before = line.totals(&f);
     let dt = 10.0;
     let sources = no_sources(2);
@@ -207,13 +212,7 @@ fn species_totals_are_conserved_with_electromigration() {
 fn one_newton_iteration_solves_linear_rate_laws() {
     let line = Line::new();
     let mut f = line.fields();
-    let mut solver = SemiImplicit::new(
-        &line.families,
-        vec![false; NODES],
-        &f.phase,
-        Interpolation::new(),
-        LinearMethod::Direct,
-    );
+    let mut solver = line.solver(vec![false; NODES], &f.phase);
     // A first-order consumption of the cation and a constant production of the anion.
     let sources = vec![vec![[1e-4, -2e-4]; NODES], vec![[3e-5, 0.0]; NODES]];
     for _ in 0..3 {
@@ -237,13 +236,7 @@ fn implicit_and_explicit_euler_agree_to_first_order() {
         let dt = end_time / steps as f64;
         let run = |implicit: bool| {
             let mut f = start.clone();
-            let mut solver = SemiImplicit::new(
-                &line.families,
-                vec![false; NODES],
-                &f.phase,
-                Interpolation::new(),
-                LinearMethod::Direct,
-            );
+            let mut solver = line.solver(vec![false; NODES], &f.phase);
             for _ in 0..steps {
                 step(&line, &mut solver, &mut f, dt, &sources, implicit);
             }
@@ -283,13 +276,7 @@ fn implicit_step_is_bounded_at_three_hours_where_explicit_diverges() {
         .fold(0.0, f64::max);
     let run = |implicit: bool| {
         let mut f = start.clone();
-        let mut solver = SemiImplicit::new(
-            &line.families,
-            vec![false; NODES],
-            &f.phase,
-            Interpolation::new(),
-            LinearMethod::Direct,
-        );
+        let mut solver = line.solver(vec![false; NODES], &f.phase);
         for _ in 0..40 {
             step(&line, &mut solver, &mut f, dt, &sources, implicit);
 
@@ -360,13 +347,7 @@ fn linear_potential_between_held_ends_is_reproduced() {
         phase: vec![Phase::Liquid; NODES],
         interface_diffusivity: None,
     };
-    let mut solver = SemiImplicit::new(
-        &line.families,
-        held,
-        &f.phase,
-        Interpolation::new(),
-        LinearMethod::Direct,
-    );
+    let mut solver = line.solver(held, &f.phase);
     let residual = solver
         .solve_potential(&line.operator(), &mut f, &vec![0.0; NODES])
         .expect("Poisson solve");
