@@ -102,10 +102,6 @@ impl SemiImplicit {
         )
     }
 
-    pub fn species_unknowns(&self) -> &Unknowns {
-        &self.species.unknowns
-    }
-
     /// Solves the Poisson equation for φ with the fields' concentrations (φ = 0 in the
     /// solid, held values kept); `extra` adds to the right side per node. Returns the
     /// relative residual.

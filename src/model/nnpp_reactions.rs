@@ -18,6 +18,8 @@
 //! at the solid end's η (a bond's diffusivity must not depend on its direction, or Σ C V is
 //! not conserved).
 
+use super::nernst_planck::FARADAY;
+
 /// R = r0 + r1 C^{n+1} at one node.
 pub type LinearSource = [f64; 2];
 
@@ -129,8 +131,7 @@ impl ReactionLaw {
                 return 0.0;
             }
             let exponent = (charge * thermal * eta).clamp(-MAX_EXPONENT, MAX_EXPONENT);
-            current / (valence(k) * FARADAY_FOR_CURRENTS * self.solid_concentration)
-                * exponent.exp()
+            current / (valence(k) * FARADAY * self.solid_concentration) * exponent.exp()
         };
         out[self.metal] = [k1b * c2 * c5, -k1f];
         out[self.complex] = [k1f * c1, -k1b * c5];
@@ -148,9 +149,6 @@ impl ReactionLaw {
         ];
     }
 }
-
-/// F in J/(z F c_solid).
-const FARADAY_FOR_CURRENTS: f64 = super::nernst_planck::FARADAY;
 
 #[cfg(test)]
 mod tests {
