@@ -11,7 +11,7 @@ pub mod nodes;
 
 pub use family::Families;
 pub use grid::Lattice;
-pub use interpolation::Interpolation;
+pub use interpolation::{CrossBonds, Interpolation};
 pub use nodes::{Field, NodeValue, Nodes};
 
 use rayon::prelude::*;

@@ -4,14 +4,16 @@
 //! Newton iteration (3.16)–(3.17) with λ = 1 and the Jacobian built once per step and frozen.
 //! With rate laws linear in the implicit species the residual is linear, so one iteration is
 //! exact up to the linear solve; the loop runs until the relative residual is below the
-//! tolerance or the iteration cap is reached (reported either way).
+//! tolerance or the iteration cap is reached (reported either way). On a multi-grid with the
+//! conservative coupling each species' solve is followed by the balance of its cross-level
+//! exchange (`discretization::interpolation::balance`).
 
-use crate::discretization::{Families, Interpolation};
+use crate::discretization::{CrossBonds, Families, Interpolation};
 use crate::model::corrosion::Phase;
 use crate::scheme::nnpp::{
     FamilySystem, ImplicitStep, LinearSource, NnppFields, NnppOperator, Unknowns,
 };
-use crate::sparse::{LinearMethod, LinearSolver, SparseError};
+use crate::sparse::{LinearMethod, LinearSolver, RankOne, SparseError};
 
 /// What one semi-implicit step reports.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -28,6 +30,10 @@ pub struct StepReport {
     pub poisson_iterations: usize,
     /// Per species: BiCGSTAB iterations summed over its Newton iterations (0 for the LU).
     pub linear_iterations: Vec<usize>,
+    /// Per species, with the conservative coupling: the mass (Σ C V) the balance of the
+    /// cross-level exchange moved in the step, D Δt (what the interpolated coupling would
+    /// have created or lost); empty without it.
+    pub balanced: Vec<f64>,
 }
 
 /// The two systems and their factorizations, kept across steps.
@@ -46,6 +52,8 @@ pub struct SemiImplicit {
     pub max_iterations: usize,
     residual: Vec<f64>,
     old: Vec<f64>,
+    /// The cross-listed nodes' exchanges at the iterate.
+    exchange: Vec<f64>,
 }
 
 impl SemiImplicit {
@@ -78,6 +86,7 @@ impl SemiImplicit {
             max_iterations: 4,
             residual: vec![0.0; n],
             old: Vec::new(),
+            exchange: Vec::new(),
         }
     }
 
@@ -147,6 +156,7 @@ impl SemiImplicit {
         report.linear_residual.clear();
         report.iterations.clear();
         report.linear_iterations.clear();
+        report.balanced.clear();
         report.poisson_iterations = self.poisson_iterations;
         for (k, source) in sources.iter().enumerate() {
             self.old.clone_from(&f.concentration[k]);
@@ -158,15 +168,45 @@ impl SemiImplicit {
                 dt,
                 sources: source,
             };
-            op.species_residual(system, k, f, &step, &mut self.residual);
+            // The conservative balance: the rate −a_i D(C)/V_i on the receiving nodes, D
+            // linear in C, so the exact Jacobian gains u vᵀ (u = a/V, v = ∂D/∂C).
+            let update = op.cross.map(|cross| {
+                let mut update = RankOne::default();
+                let mut dense = Vec::new();
+                op.cross_derivative(cross, k, f, unknowns, &mut dense, &mut update.v);
+                update.u = cross
+                    .nodes
+                    .iter()
+                    .zip(&cross.share)
+                    .zip(&cross.volumes)
+                    .filter(|((_, a), _)| **a > 0.0)
+                    .map(|((&i, a), v)| (unknowns.index[i as usize] as usize, a / v))
+                    .collect();
+                update
+            });
+            let mut defect = 0.0;
+            let mut residual = |f: &NnppFields, out: &mut Vec<f64>, exchange: &mut Vec<f64>| {
+                op.species_residual(system, k, f, &step, out);
+                if let Some(cross) = op.cross {
+                    exchange.resize(cross.len(), 0.0);
+                    op.cross_exchange(cross, k, f, exchange);
+                    defect = exchange.iter().sum::<f64>();
+                    for ((&i, v), a) in cross.nodes.iter().zip(&cross.volumes).zip(&cross.share) {
+                        out[unknowns.index[i as usize] as usize] += a * defect / v;
+                    }
+                }
+            };
+            residual(f, &mut self.residual, &mut self.exchange);
             let initial = norm(&self.residual);
             let (mut relative, mut linear, mut iterations) = (0.0_f64, 0.0_f64, 0);
             let mut linear_iterations = 0;
             while iterations < self.max_iterations {
                 let mut delta: Vec<f64> = self.residual.iter().map(|r| -r).collect();
-                let r = self
-                    .species_solver
-                    .solve(&self.species.matrix, &mut delta)?;
+                let r = self.species_solver.solve_with(
+                    &self.species.matrix,
+                    update.as_ref(),
+                    &mut delta,
+                )?;
                 linear = linear.max(r);
                 linear_iterations += self.species_solver.iterations;
                 let c = &mut f.concentration[k];
@@ -174,7 +214,7 @@ impl SemiImplicit {
                     c[i as usize] += d;
                 }
                 iterations += 1;
-                op.species_residual(system, k, f, &step, &mut self.residual);
+                residual(f, &mut self.residual, &mut self.exchange);
                 relative = if initial > 0.0 {
                     norm(&self.residual) / initial
                 } else {
@@ -188,14 +228,18 @@ impl SemiImplicit {
             report.linear_residual.push(linear);
             report.iterations.push(iterations);
             report.linear_iterations.push(linear_iterations);
+            if op.cross.is_some() {
+                report.balanced.push(defect * dt);
+            }
         }
         Ok(())
     }
 
     /// Explicit Euler of every species with the same φ and sources (for comparison and the
-    /// stability tests): C^{n+1} = C^n + Δt (rate + R(C^n)).
+    /// stability tests): C^{n+1} = C^n + Δt (rate + R(C^n)), the cross-level exchange
+    /// balanced at C^n with the conservative coupling.
     pub fn explicit_species(
-        &self,
+        &mut self,
         op: &NnppOperator,
         f: &mut NnppFields,
         dt: f64,
@@ -216,12 +260,35 @@ impl SemiImplicit {
                     .collect()
             })
             .collect();
+        let corrections: Vec<Vec<f64>> = match op.cross {
+            Some(cross) => (0..sources.len())
+                .map(|k| {
+                    let mut g = vec![0.0; cross.len()];
+                    op.cross_exchange(cross, k, f, &mut g);
+                    let defect: f64 = g.iter().sum();
+                    cross.share.iter().map(|a| -a * defect).collect()
+                })
+                .collect(),
+            None => Vec::new(),
+        };
         for (k, update) in updates.into_iter().enumerate() {
+            let c = &mut f.concentration[k];
             for (&i, v) in unknowns.nodes.iter().zip(update) {
-                f.concentration[k][i as usize] = v;
+                c[i as usize] = v;
             }
-            self.constraints.transfer(&mut f.concentration[k]);
+            if let (Some(cross), Some(g)) = (op.cross, corrections.get(k)) {
+                apply_corrections(cross, g, dt, c);
+            }
+            self.constraints.transfer(c);
         }
+    }
+}
+
+/// C_i += Δt g_i / V_i on the cross-listed nodes (g: the balance's corrections −a_i D,
+/// mass per unit time).
+fn apply_corrections(cross: &CrossBonds, corrections: &[f64], dt: f64, c: &mut [f64]) {
+    for ((&i, v), g) in cross.nodes.iter().zip(&cross.volumes).zip(corrections) {
+        c[i as usize] += dt * g / v;
     }
 }
 

@@ -142,6 +142,24 @@ pub struct MultigridSpec {
     pub refinement: Refinement,
     /// The coarse level's scheme (the fine level always runs the standard scheme).
     pub coarse: CoarseScheme,
+    /// How the levels' fluxes through fictitious nodes are accounted (nernst-planck).
+    pub coupling: Coupling,
+}
+
+/// The accounting of the fluxes between the two levels of a predefined-region multi-grid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Coupling {
+    /// The thesis's (3.89)–(3.90): each level's active nodes see the other level through
+    /// their fictitious nodes; consistent on both sides, not conservative (IDW is not).
+    #[default]
+    Interpolated,
+    /// Conservative: the fine level's bonds into its fictitious nodes are kept and their
+    /// fluxes taken back from the coarse nodes those values come from (the transpose of the
+    /// IDW rows, `discretization::FluxReturn`); the coarse level's bonds into its fictitious
+    /// nodes carry nothing (the fine side's returned fluxes replace them). Σ C V over the
+    /// active nodes is conserved up to the solves' residuals.
+    Conservative,
 }
 
 /// The scheme on the coarse level of a multi-adaptive scene (thesis §3.5): "adaptive, standard"

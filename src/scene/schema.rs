@@ -129,6 +129,10 @@ pub struct MultigridTable {
     /// With `coarse = "wls"`: exponent a of the fit weight exp(−a d²/r̄²) (the papers' 16).
     #[serde(default)]
     pub fit_weight: Option<f64>,
+    /// Nernst-planck: "interpolated" (default, the thesis's (3.89)–(3.90)) or "conservative"
+    /// (the fine level's fluxes into its fictitious nodes taken back from the coarse level).
+    #[serde(default)]
+    pub coupling: Option<super::Coupling>,
 }
 
 /// The `multigrid.coarse` scheme names.

@@ -562,10 +562,19 @@ fn multigrid(
             spacing,
         )?),
     };
+    let coupling = m.coupling.unwrap_or_default();
+    if coupling == Coupling::Conservative && physics != Physics::NernstPlanck {
+        return Err(ctx.error(
+            "multigrid.coupling",
+            "\"conservative\" is built for the implicit nernst-planck systems; diffusion, \
+             corrosion and dynamics use \"interpolated\" (the default)",
+        ));
+    }
     Ok(Some(MultigridSpec {
         ratio: m.ratio,
         refinement,
         coarse,
+        coupling,
     }))
 }
 

@@ -10,7 +10,7 @@
 
 use rayon::prelude::*;
 
-use crate::discretization::{Families, Interpolation, Quadrature};
+use crate::discretization::{CrossBonds, Families, Interpolation, Quadrature};
 use crate::model::corrosion::Phase;
 pub use crate::model::nernst_planck::SpeciesLaw;
 use crate::model::nernst_planck::{FARADAY, GAS_CONSTANT, NnppKernel};
@@ -321,25 +321,90 @@ pub struct NnppOperator<'a> {
     pub conductivity: f64,
     /// mol/m³ per unit of C in the charge F Σ z C (1 when C is in mol/m³).
     pub concentration_unit: f64,
+    /// The multi-grid's cross-level bonds when their exchange is balanced (the conservative
+    /// coupling); None: the fluxes stand as the bonds give them.
+    pub cross: Option<&'a CrossBonds>,
 }
 
 impl NnppOperator<'_> {
-    /// The nonlocal flux sum of (2.63) at node i for species k (no reaction).
-    #[inline]
-    pub fn species_rate(&self, k: usize, i: usize, f: &NnppFields) -> f64 {
+    /// The flux of species k that bond b = i→j carries into i (2.63):
+    /// D [g1 (C_j − C_i) + g2 zF/RT (φ_j − φ_i) (C_j + C_i)].
+    #[inline(always)]
+    fn bond_flux(&self, k: usize, b: usize, i: usize, f: &NnppFields) -> f64 {
         let law = &self.species[k];
         let c = &f.concentration[k];
         let zf = law.valence * self.bonds.thermal;
-        let (ci, pi) = (c[i], f.potential[i]);
+        let j = self.families.neighbors[b] as usize;
+        let d = f.bond_diffusivity(law, k, i, j);
+        d * (self.bonds.diffusion[b] * (c[j] - c[i])
+            + self.bonds.migration[b] * zf * (f.potential[j] - f.potential[i]) * (c[j] + c[i]))
+    }
+
+    /// The nonlocal flux sum of (2.63) at node i for species k (no reaction).
+    #[inline]
+    pub fn species_rate(&self, k: usize, i: usize, f: &NnppFields) -> f64 {
         self.families
             .range(i)
-            .map(|b| {
+            .map(|b| self.bond_flux(k, b, i, f))
+            .sum()
+    }
+
+    /// Each cross-listed node's exchange with the other level, V_i Σ q over its cross bonds
+    /// (mass per unit time into the node), species k.
+    pub fn cross_exchange(&self, cross: &CrossBonds, k: usize, f: &NnppFields, out: &mut [f64]) {
+        out.par_iter_mut().enumerate().for_each(|(m, g)| {
+            let i = cross.nodes[m] as usize;
+            *g = cross.volumes[m]
+                * cross
+                    .range(m)
+                    .map(|e| self.bond_flux(k, cross.bonds[e] as usize, i, f))
+                    .sum::<f64>();
+        });
+    }
+
+    /// ∂D/∂C of the cross exchange D = Σ_m V_m Σ_b q_b (species k, frozen φ and phases) as
+    /// (unknown, value) pairs, one per unknown end of the cross bonds (`dense`: a buffer
+    /// over the unknowns, left zeroed).
+    pub fn cross_derivative(
+        &self,
+        cross: &CrossBonds,
+        k: usize,
+        f: &NnppFields,
+        unknowns: &Unknowns,
+        dense: &mut Vec<f64>,
+        out: &mut Vec<(usize, f64)>,
+    ) {
+        dense.clear();
+        dense.resize(unknowns.len(), 0.0);
+        let mut touched = Vec::new();
+        let law = &self.species[k];
+        let zf = law.valence * self.bonds.thermal;
+        for m in 0..cross.len() {
+            let i = cross.nodes[m] as usize;
+            let v = cross.volumes[m];
+            for e in cross.range(m) {
+                let b = cross.bonds[e] as usize;
                 let j = self.families.neighbors[b] as usize;
                 let d = f.bond_diffusivity(law, k, i, j);
-                d * (self.bonds.diffusion[b] * (c[j] - ci)
-                    + self.bonds.migration[b] * zf * (f.potential[j] - pi) * (c[j] + ci))
-            })
-            .sum()
+                let g1 = self.bonds.diffusion[b];
+                let g2 = self.bonds.migration[b] * zf * (f.potential[j] - f.potential[i]);
+                for (node, value) in [(i, v * d * (g2 - g1)), (j, v * d * (g1 + g2))] {
+                    let u = unknowns.index[node];
+                    if u != u32::MAX {
+                        touched.push(u as usize);
+                        dense[u as usize] += value;
+                    }
+                }
+            }
+        }
+        touched.sort_unstable();
+        touched.dedup();
+        out.clear();
+        out.extend(
+            touched
+                .into_iter()
+                .map(|u| (u, std::mem::take(&mut dense[u]))),
+        );
     }
 
     /// The Jacobian of the residual (3.11) of species k, frozen at the step's φ^n and phases

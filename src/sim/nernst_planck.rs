@@ -9,12 +9,12 @@ use rayon::prelude::*;
 use crate::adapt::masks::{GridClass, Phase};
 use crate::adapt::multigrid::MultiGrid;
 use crate::adapt::phase::solid_volume;
-use crate::discretization::{Discretization, Families, Interpolation};
+use crate::discretization::{CrossBonds, Discretization, Families, Interpolation};
 use crate::frame::{Frame, NodeField};
 use crate::integrate::newton::{SemiImplicit, StepReport};
 use crate::model::nnpp_reactions::Site;
 use crate::scene::nernst_planck::NernstPlanckSpec;
-use crate::scene::{CoarseScheme, Condition, Scene, SceneError};
+use crate::scene::{CoarseScheme, Condition, Coupling, Scene, SceneError};
 use crate::scheme::nnpp::{LinearSource, NnppBonds, NnppFields, NnppOperator, SpeciesLaw};
 use crate::solver::{
     Clock, Integrator, Lap, Param, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
@@ -36,6 +36,9 @@ pub struct NernstPlanckSimulation<const D: usize> {
     discretization: Discretization<D>,
     /// The two levels of a multi-grid scene (classes, interpolation); None on one grid.
     multigrid: Option<MultiGrid<D>>,
+    /// The cross-level bonds whose exchange is balanced (`multigrid.coupling =
+    /// "conservative"`); None: the thesis's interpolated coupling, or one grid.
+    cross: Option<CrossBonds>,
     bonds: NnppBonds,
     laws: Vec<SpeciesLaw>,
     fields: NnppFields,
@@ -176,7 +179,22 @@ impl<const D: usize> NernstPlanckSimulation<D> {
         let interpolation = multigrid
             .as_ref()
             .map_or_else(Interpolation::new, |g| g.interpolation.clone());
-        let free = held.iter().map(|h| !h).collect();
+        let free: Vec<bool> = held.iter().map(|h| !h).collect();
+        let conservative = scene
+            .multigrid
+            .as_ref()
+            .is_some_and(|m| m.coupling == Coupling::Conservative);
+        let cross = conservative.then(|| {
+            let coarse = |i: usize| multigrid.as_ref().is_some_and(|g| !g.class[i].is_fine());
+            CrossBonds::new(
+                &discretization.families,
+                &interpolation,
+                volumes,
+                |i| free[i],
+                coarse,
+                |b| bonds.diffusion[b],
+            )
+        });
         let mut solver = SemiImplicit::new(
             &discretization.families,
             held,
@@ -231,6 +249,7 @@ impl<const D: usize> NernstPlanckSimulation<D> {
             spec,
             discretization,
             multigrid,
+            cross,
             bonds,
             laws,
             fields,
@@ -419,6 +438,7 @@ fn operator<'a, const D: usize>(
     bonds: &'a NnppBonds,
     laws: &'a [SpeciesLaw],
     spec: &NernstPlanckSpec,
+    cross: Option<&'a CrossBonds>,
 ) -> NnppOperator<'a> {
     NnppOperator {
         families: &d.families,
@@ -426,6 +446,7 @@ fn operator<'a, const D: usize>(
         species: laws,
         conductivity: spec.conductivity,
         concentration_unit: spec.concentration_unit,
+        cross,
     }
 }
 
@@ -460,7 +481,13 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
         let mut lap = Lap::start();
         let dt = self.run.clock.dt();
         // The operator borrows self's grid and bonds; the fields and solver are disjoint.
-        let op = operator(&self.discretization, &self.bonds, &self.laws, &self.spec);
+        let op = operator(
+            &self.discretization,
+            &self.bonds,
+            &self.laws,
+            &self.spec,
+            self.cross.as_ref(),
+        );
         self.report.poisson_residual = self
             .solver
             .solve_potential(&op, &mut self.fields, &self.poisson_source)
@@ -468,7 +495,13 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
         lap.charge(&mut self.run.stages, POISSON);
         self.update_reactions();
         lap.charge(&mut self.run.stages, REACTIONS);
-        let op = operator(&self.discretization, &self.bonds, &self.laws, &self.spec);
+        let op = operator(
+            &self.discretization,
+            &self.bonds,
+            &self.laws,
+            &self.spec,
+            self.cross.as_ref(),
+        );
         self.solver
             .step_species(&op, &mut self.fields, dt, &self.sources, &mut self.report)
             .map_err(|e| SimError::Solve(format!("species: {e}")))?;
@@ -584,6 +617,9 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
                     format!("linear/iterations/{}", law.name),
                     self.report.linear_iterations[k] as f64,
                 ));
+            }
+            if let (Some(moved), true) = (self.report.balanced.get(k), initial != 0.0) {
+                scalars.push((format!("coupling/balanced/{}", law.name), moved / initial));
             }
         }
         if let Some(errors) = self.errors() {

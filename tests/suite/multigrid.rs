@@ -213,3 +213,18 @@ fn a_wls_coarse_level_reproduces_the_pd_operator_and_the_fine_models_dissolution
     assert!(drift < 1e-3, "{drift:e}");
     assert!((gone - fine).abs() <= 0.02 * fine, "{gone} vs {fine}");
 }
+
+/// The conservative coupling is built for the implicit NNPP systems: asking for it on an
+/// explicit corrosion scene names the field and what it allows, without a panic.
+#[test]
+fn the_conservative_coupling_is_refused_outside_nernst_planck() {
+    let err = Scene::load_with(
+        PRESET,
+        Some("multigrid"),
+        &["multigrid.coupling=\"conservative\"".to_string()],
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("multigrid.coupling"), "{err}");
+    assert!(err.contains("interpolated"), "{err}");
+}

@@ -70,6 +70,7 @@ impl Line {
             species: &self.species,
             conductivity: CONDUCTIVITY,
             concentration_unit: 1.0,
+            cross: None,
         }
     }
 
