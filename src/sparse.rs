@@ -428,19 +428,25 @@ mod tests {
         assert!(err < 1e-13, "{err:e}");
     }
 
+    /// The tridiagonal pattern of order n, values zero.
+    fn tridiagonal(n: usize) -> SparseMatrix {
+        SparseMatrix::with_pattern(
+            (0..n)
+                .map(|i| {
+                    [i.wrapping_sub(1), i, i + 1]
+                        .into_iter()
+                        .filter(|&j| j < n)
+                        .collect()
+                })
+                .collect(),
+        )
+    }
+
     /// BiCGSTAB meets its tolerance on the same system and agrees with the LU.
     #[test]
     fn bicgstab_reaches_its_tolerance() {
         let n: usize = 300;
-        let rows: Vec<Vec<usize>> = (0..n)
-            .map(|i| {
-                [i.wrapping_sub(1), i, i + 1]
-                    .into_iter()
-                    .filter(|&j| j < n)
-                    .collect()
-            })
-            .collect();
-        let mut a = SparseMatrix::with_pattern(rows);
+        let mut a = tridiagonal(n);
         for i in 0..n {
             for (j, v) in [
                 (i.wrapping_sub(1), -1.2),
@@ -489,15 +495,7 @@ mod tests {
     #[test]
     fn a_rank_one_update_is_solved_by_both_methods() {
         let n: usize = 120;
-        let rows: Vec<Vec<usize>> = (0..n)
-            .map(|i| {
-                [i.wrapping_sub(1), i, i + 1]
-                    .into_iter()
-                    .filter(|&j| j < n)
-                    .collect()
-            })
-            .collect();
-        let mut a = SparseMatrix::with_pattern(rows);
+        let mut a = tridiagonal(n);
         let coefficient = |i: usize, j: usize| -> f64 {
             if i == j {
                 3.0

@@ -323,6 +323,7 @@ pub(super) fn absorbing(
         max_norm,
         max_condition,
         thinning: table.thinning,
+        rigid_mode: table.rigid_mode,
     })
 }
 

@@ -432,6 +432,20 @@ fn explicit_bound<const D: usize>(
     }
 }
 
+/// `operator(…)` of a simulation's parts, borrowed field by field so that its fields and
+/// solver stay free for the step.
+macro_rules! operator {
+    ($sim:ident) => {
+        operator(
+            &$sim.discretization,
+            &$sim.bonds,
+            &$sim.laws,
+            &$sim.spec,
+            $sim.cross.as_ref(),
+        )
+    };
+}
+
 /// The discrete operator of the grid (borrowing its parts, so the fields stay free).
 fn operator<'a, const D: usize>(
     d: &'a Discretization<D>,
@@ -480,14 +494,7 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
     fn step(&mut self) -> Result<(), SimError> {
         let mut lap = Lap::start();
         let dt = self.run.clock.dt();
-        // The operator borrows self's grid and bonds; the fields and solver are disjoint.
-        let op = operator(
-            &self.discretization,
-            &self.bonds,
-            &self.laws,
-            &self.spec,
-            self.cross.as_ref(),
-        );
+        let op = operator!(self);
         self.report.poisson_residual = self
             .solver
             .solve_potential(&op, &mut self.fields, &self.poisson_source)
@@ -495,13 +502,7 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
         lap.charge(&mut self.run.stages, POISSON);
         self.update_reactions();
         lap.charge(&mut self.run.stages, REACTIONS);
-        let op = operator(
-            &self.discretization,
-            &self.bonds,
-            &self.laws,
-            &self.spec,
-            self.cross.as_ref(),
-        );
+        let op = operator!(self);
         self.solver
             .step_species(&op, &mut self.fields, dt, &self.sources, &mut self.report)
             .map_err(|e| SimError::Solve(format!("species: {e}")))?;

@@ -349,8 +349,8 @@ fn wave_2d_leaves_the_disc_through_the_layer() {
 /// The one-step map of a linear scalar simulation, column by column: each state component set
 /// to 1 in turn (the rest 0), one step, the new state read back. A state is the field, and for
 /// waves also u̇, u^{n−1} and u̇^{n−1}.
-fn one_step_map(scene: &Scene) -> nalgebra::DMatrix<f64> {
-    let mut sim = ScalarSimulation::<1>::new(scene).unwrap();
+fn one_step_map<const D: usize>(scene: &Scene) -> nalgebra::DMatrix<f64> {
+    let mut sim = ScalarSimulation::<D>::new(scene).unwrap();
     let n = sim.positions().len();
     let names: &[&str] = if sim.velocity().is_some() {
         &["field", "velocity", "previous_field", "previous_velocity"]
@@ -395,14 +395,18 @@ fn spectral_radius(map: nalgebra::DMatrix<f64>) -> f64 {
 /// tenfold, measured); the n_b = 2 layer, which the note's check saw diverge, is far above.
 #[test]
 fn absorbing_layers_are_stable_for_any_number_of_steps() {
-    let diffusion = spectral_radius(one_step_map(&scene("abc-diffusion-1d", None, &[])));
-    let neumann = spectral_radius(one_step_map(&scene(
+    let diffusion = spectral_radius(one_step_map::<1>(&scene("abc-diffusion-1d", None, &[])));
+    let neumann = spectral_radius(one_step_map::<1>(&scene(
         "abc-diffusion-1d",
         Some("neumann"),
         &[],
     )));
-    let wave = spectral_radius(one_step_map(&scene("abc-wave-1d", None, &[])));
-    let two = spectral_radius(one_step_map(&scene("abc-wave-1d", Some("modes-2"), &[])));
+    let wave = spectral_radius(one_step_map::<1>(&scene("abc-wave-1d", None, &[])));
+    let two = spectral_radius(one_step_map::<1>(&scene(
+        "abc-wave-1d",
+        Some("modes-2"),
+        &[],
+    )));
     eprintln!(
         "spectral radius of one step: S1 layer {diffusion:.12}, S1 Neumann {neumann:.12}, S4 n_b = 5 \
          {wave:.12}, S4 n_b = 2 {two:.6}"
@@ -500,4 +504,31 @@ fn a_new_time_step_refits_the_layer() {
     });
     eprintln!("S4 with Δt halved at t = 12.5: max |u − u_ref| at t = 25: {error:.3e}");
     assert!(error <= 1e-2);
+}
+
+/// Exploration: the spectral radius of the 2D layer's one-step map on a small disc
+/// (`RADIUS`, default 5) with the options in `SET` (`;`-separated).
+#[test]
+#[ignore = "exploration"]
+fn zz_wave_2d_spectral_radius() {
+    let radius = std::env::var("RADIUS").unwrap_or_else(|_| "5".into());
+    let geometry = format!("geometry={{sphere={{center=[0.0, 0.0], radius={radius}}}}}");
+    let extra: Vec<String> = std::env::var("SET")
+        .map(|s| {
+            s.split(';')
+                .filter(|s| !s.is_empty())
+                .map(String::from)
+                .collect()
+        })
+        .unwrap_or_default();
+    let mut set: Vec<&str> = vec![geometry.as_str()];
+    set.extend(extra.iter().map(String::as_str));
+    let s = scene("abc-wave-2d", Some("scaled"), &set);
+    let map = one_step_map::<2>(&s);
+    eprintln!("dimension {}", map.nrows());
+    let rho = spectral_radius(map);
+    eprintln!(
+        "{extra:?}: spectral radius {rho:.12} (ρ^1e5 = {:.3e})",
+        rho.powi(100_000)
+    );
 }
