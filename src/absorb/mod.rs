@@ -135,13 +135,6 @@ pub fn scalar_modes<const D: usize>(
             modes.push(mode);
         }
     }
-    if wave && spec.rigid_mode {
-        modes.push(Mode {
-            wave_vector: [Complex::new(0.0, 0.0); D],
-            rate: Complex::new(0.0, 0.0),
-            polarization: None,
-        });
-    }
     modes
 }
 
@@ -270,15 +263,6 @@ pub fn bond_modes(normal: &[f64; 2], spec: &AbsorbingSpec, far: &BondFarField) -
                     polarization: Some([2.0 * gamma[0], 2.0 * gamma[1]]),
                 });
             }
-        }
-    }
-    if spec.rigid_mode {
-        for gamma in [[1.0, 0.0], [0.0, 1.0]] {
-            modes.push(Mode {
-                wave_vector: [Complex::new(0.0, 0.0); 2],
-                rate: Complex::new(0.0, 0.0),
-                polarization: Some(gamma),
-            });
         }
     }
     modes

@@ -323,7 +323,6 @@ pub(super) fn absorbing(
         max_norm,
         max_condition,
         thinning: table.thinning,
-        rigid_mode: table.rigid_mode,
     })
 }
 

@@ -314,8 +314,6 @@ pub struct AbsorbingSpec {
     pub max_norm: f64,
     pub max_condition: f64,
     pub thinning: bool,
-    /// Waves: the zero-frequency mode(s) fitted beside the outgoing ones.
-    pub rigid_mode: bool,
 }
 
 /// How fine nodes take their values from the coarse level in the multi-adaptive scheme.

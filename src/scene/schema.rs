@@ -515,10 +515,6 @@ pub struct AbsorbingTable {
     pub max_condition: Option<f64>,
     #[serde(default)]
     pub thinning: bool,
-    /// Waves: also fit the zero-frequency mode (u = const, u̇ = 0; for bond-based PD the two
-    /// rigid translations), which no outgoing mode of k > 0 represents.
-    #[serde(default)]
-    pub rigid_mode: bool,
 }
 
 #[derive(Debug, Clone, Deserialize)]

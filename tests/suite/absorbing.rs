@@ -506,13 +506,16 @@ fn a_new_time_step_refits_the_layer() {
     assert!(error <= 1e-2);
 }
 
-/// Exploration: the spectral radius of the 2D layer's one-step map on a small disc
-/// (`RADIUS`, default 5) with the options in `SET` (`;`-separated).
+/// Tuning aid for the 2D long-run stability: the near-field energy of `scaled` on a disc of
+/// `RADIUS` (default 26) over `STEPS` steps (default 10⁵) with the options in `SET`
+/// (`;`-separated), e.g. `RADIUS=10 cargo test --release -- --ignored zz_wave_2d_long`.
 #[test]
 #[ignore = "exploration"]
-fn zz_wave_2d_spectral_radius() {
-    let radius = std::env::var("RADIUS").unwrap_or_else(|_| "5".into());
+fn zz_wave_2d_long_energy() {
+    let radius = std::env::var("RADIUS").unwrap_or_else(|_| "26".into());
+    let steps = std::env::var("STEPS").unwrap_or_else(|_| "100000".into());
     let geometry = format!("geometry={{sphere={{center=[0.0, 0.0], radius={radius}}}}}");
+    let end = format!("time.end=\"{steps} steps\"");
     let extra: Vec<String> = std::env::var("SET")
         .map(|s| {
             s.split(';')
@@ -521,14 +524,30 @@ fn zz_wave_2d_spectral_radius() {
                 .collect()
         })
         .unwrap_or_default();
-    let mut set: Vec<&str> = vec![geometry.as_str()];
+    let mut set: Vec<&str> = vec![geometry.as_str(), end.as_str()];
     set.extend(extra.iter().map(String::as_str));
     let s = scene("abc-wave-2d", Some("scaled"), &set);
-    let map = one_step_map::<2>(&s);
-    eprintln!("dimension {}", map.nrows());
-    let rho = spectral_radius(map);
-    eprintln!(
-        "{extra:?}: spectral radius {rho:.12} (ρ^1e5 = {:.3e})",
-        rho.powi(100_000)
-    );
+    if std::env::var("WHERE").is_ok() {
+        // Where the field is largest at the end: the nodes a growing mode lives on.
+        let mut sim = ScalarSimulation::<2>::new(&s).unwrap();
+        while !sim.run().clock.done() && sim.step().is_ok() {}
+        let u = sim.field();
+        let mut order: Vec<usize> = (0..u.len()).collect();
+        order.sort_by(|a, b| u[*b].abs().total_cmp(&u[*a].abs()));
+        for &i in order.iter().take(12) {
+            let x = sim.positions()[i];
+            eprintln!(
+                "node {i}: u {:.3e} at r {:.3}, angle {:.1}°",
+                u[i],
+                (x[0] * x[0] + x[1] * x[1]).sqrt(),
+                x[1].atan2(x[0]).to_degrees()
+            );
+        }
+        return;
+    }
+    let e = energy_history::<2>(&s);
+    for (t, v) in e.iter().step_by((e.len() / 20).max(1)) {
+        eprintln!("t {t:8.1}: {v:.3e}");
+    }
+    eprintln!("{extra:?}: last {:?}", e.last());
 }
