@@ -5,8 +5,8 @@
 //! With rate laws linear in the implicit species the residual is linear, so one iteration is
 //! exact up to the linear solve; the loop runs until the relative residual is below the
 //! tolerance or the iteration cap is reached (reported either way). On a multi-grid with the
-//! conservative coupling each species' solve is followed by the balance of its cross-level
-//! exchange (`discretization::interpolation::balance`).
+//! conservative coupling each species' residual holds the balance of its cross-level exchange
+//! (`discretization::CrossBonds`) and its Jacobian the balance's rank-one term.
 
 use crate::discretization::{CrossBonds, Families, Interpolation};
 use crate::model::corrosion::Phase;
@@ -54,6 +54,9 @@ pub struct SemiImplicit {
     old: Vec<f64>,
     /// The cross-listed nodes' exchanges at the iterate.
     exchange: Vec<f64>,
+    /// The balance's rank-one Jacobian term, and a buffer over the unknowns for its v.
+    balance: RankOne,
+    dense: Vec<f64>,
 }
 
 impl SemiImplicit {
@@ -87,6 +90,8 @@ impl SemiImplicit {
             residual: vec![0.0; n],
             old: Vec::new(),
             exchange: Vec::new(),
+            balance: RankOne::default(),
+            dense: Vec::new(),
         }
     }
 
@@ -171,18 +176,19 @@ impl SemiImplicit {
             // The conservative balance: the rate −a_i D(C)/V_i on the receiving nodes, D
             // linear in C, so the exact Jacobian gains u vᵀ (u = a/V, v = ∂D/∂C).
             let update = op.cross.map(|cross| {
-                let mut update = RankOne::default();
-                let mut dense = Vec::new();
-                op.cross_derivative(cross, k, f, unknowns, &mut dense, &mut update.v);
-                update.u = cross
-                    .nodes
-                    .iter()
-                    .zip(&cross.share)
-                    .zip(&cross.volumes)
-                    .filter(|((_, a), _)| **a > 0.0)
-                    .map(|((&i, a), v)| (unknowns.index[i as usize] as usize, a / v))
-                    .collect();
-                update
+                let balance = &mut self.balance;
+                op.cross_derivative(cross, k, f, unknowns, &mut self.dense, &mut balance.v);
+                balance.u.clear();
+                balance.u.extend(
+                    cross
+                        .nodes
+                        .iter()
+                        .zip(&cross.share)
+                        .zip(&cross.volumes)
+                        .filter(|((_, a), _)| **a > 0.0)
+                        .map(|((&i, a), v)| (unknowns.index[i as usize] as usize, a / v)),
+                );
+                &*balance
             });
             let mut defect = 0.0;
             let mut residual = |f: &NnppFields, out: &mut Vec<f64>, exchange: &mut Vec<f64>| {
@@ -202,11 +208,9 @@ impl SemiImplicit {
             let mut linear_iterations = 0;
             while iterations < self.max_iterations {
                 let mut delta: Vec<f64> = self.residual.iter().map(|r| -r).collect();
-                let r = self.species_solver.solve_with(
-                    &self.species.matrix,
-                    update.as_ref(),
-                    &mut delta,
-                )?;
+                let r = self
+                    .species_solver
+                    .solve_with(&self.species.matrix, update, &mut delta)?;
                 linear = linear.max(r);
                 linear_iterations += self.species_solver.iterations;
                 let c = &mut f.concentration[k];
@@ -239,7 +243,7 @@ impl SemiImplicit {
     /// stability tests): C^{n+1} = C^n + Δt (rate + R(C^n)), the cross-level exchange
     /// balanced at C^n with the conservative coupling.
     pub fn explicit_species(
-        &mut self,
+        &self,
         op: &NnppOperator,
         f: &mut NnppFields,
         dt: f64,

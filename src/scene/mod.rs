@@ -154,11 +154,11 @@ pub enum Coupling {
     /// their fictitious nodes; consistent on both sides, not conservative (IDW is not).
     #[default]
     Interpolated,
-    /// Conservative: the fine level's bonds into its fictitious nodes are kept and their
-    /// fluxes taken back from the coarse nodes those values come from (the transpose of the
-    /// IDW rows, `discretization::FluxReturn`); the coarse level's bonds into its fictitious
-    /// nodes carry nothing (the fine side's returned fluxes replace them). Σ C V over the
-    /// active nodes is conserved up to the solves' residuals.
+    /// Conservative: the same fictitious values and bonds, and the levels' exchange D (the
+    /// interpolated coupling's conservation defect) taken back from the coarse nodes that
+    /// exchange, inside the implicit systems (`discretization::CrossBonds`): the coarse level
+    /// takes the fine level's view of the exchange. Σ C V over the active nodes is conserved up
+    /// to the solves' residuals, at some accuracy next to the level interface.
     Conservative,
 }
 

@@ -130,7 +130,7 @@ pub struct MultigridTable {
     #[serde(default)]
     pub fit_weight: Option<f64>,
     /// Nernst-planck: "interpolated" (default, the thesis's (3.89)–(3.90)) or "conservative"
-    /// (the fine level's fluxes into its fictitious nodes taken back from the coarse level).
+    /// (the levels' exchange balanced, the coarse level taking the fine level's view of it).
     #[serde(default)]
     pub coupling: Option<super::Coupling>,
 }

@@ -312,6 +312,29 @@ pub struct ImplicitStep<'a> {
     pub sources: &'a [LinearSource],
 }
 
+/// One bond's parts of the species flux q = D [g1 (C_j − C_i) + g2 (C_j + C_i)] into i.
+#[derive(Debug, Clone, Copy)]
+struct BondCoefficients {
+    far: usize,
+    diffusivity: f64,
+    /// g1.
+    diffusion: f64,
+    /// g2, with zF/RT (φ_j − φ_i).
+    migration: f64,
+}
+
+impl BondCoefficients {
+    /// (∂q/∂C_i, ∂q/∂C_j) = D (g2 − g1, g1 + g2).
+    #[inline(always)]
+    fn derivatives(&self) -> (f64, f64) {
+        let d = self.diffusivity;
+        (
+            d * (self.migration - self.diffusion),
+            d * (self.diffusion + self.migration),
+        )
+    }
+}
+
 /// The discrete operator of one grid: families, bond weights, species laws, conductivity.
 pub struct NnppOperator<'a> {
     pub families: &'a Families,
@@ -327,17 +350,32 @@ pub struct NnppOperator<'a> {
 }
 
 impl NnppOperator<'_> {
+    /// Bond b = i→j of species k: its far end j, its diffusivity D (2.78) and its weights g1
+    /// and g2 = K2-weight · zF/RT (φ_j − φ_i), so that the flux into i is
+    /// q = D [g1 (C_j − C_i) + g2 (C_j + C_i)].
+    #[inline(always)]
+    fn bond_coefficients(&self, k: usize, b: usize, i: usize, f: &NnppFields) -> BondCoefficients {
+        let law = &self.species[k];
+        let j = self.families.neighbors[b] as usize;
+        BondCoefficients {
+            far: j,
+            diffusivity: f.bond_diffusivity(law, k, i, j),
+            diffusion: self.bonds.diffusion[b],
+            migration: self.bonds.migration[b]
+                * law.valence
+                * self.bonds.thermal
+                * (f.potential[j] - f.potential[i]),
+        }
+    }
+
     /// The flux of species k that bond b = i→j carries into i (2.63):
     /// D [g1 (C_j − C_i) + g2 zF/RT (φ_j − φ_i) (C_j + C_i)].
     #[inline(always)]
     fn bond_flux(&self, k: usize, b: usize, i: usize, f: &NnppFields) -> f64 {
-        let law = &self.species[k];
         let c = &f.concentration[k];
-        let zf = law.valence * self.bonds.thermal;
-        let j = self.families.neighbors[b] as usize;
-        let d = f.bond_diffusivity(law, k, i, j);
-        d * (self.bonds.diffusion[b] * (c[j] - c[i])
-            + self.bonds.migration[b] * zf * (f.potential[j] - f.potential[i]) * (c[j] + c[i]))
+        let q = self.bond_coefficients(k, b, i, f);
+        let j = q.far;
+        q.diffusivity * (q.diffusion * (c[j] - c[i]) + q.migration * (c[j] + c[i]))
     }
 
     /// The nonlocal flux sum of (2.63) at node i for species k (no reaction).
@@ -376,34 +414,27 @@ impl NnppOperator<'_> {
     ) {
         dense.clear();
         dense.resize(unknowns.len(), 0.0);
-        let mut touched = Vec::new();
-        let law = &self.species[k];
-        let zf = law.valence * self.bonds.thermal;
         for m in 0..cross.len() {
             let i = cross.nodes[m] as usize;
             let v = cross.volumes[m];
             for e in cross.range(m) {
-                let b = cross.bonds[e] as usize;
-                let j = self.families.neighbors[b] as usize;
-                let d = f.bond_diffusivity(law, k, i, j);
-                let g1 = self.bonds.diffusion[b];
-                let g2 = self.bonds.migration[b] * zf * (f.potential[j] - f.potential[i]);
-                for (node, value) in [(i, v * d * (g2 - g1)), (j, v * d * (g1 + g2))] {
+                let q = self.bond_coefficients(k, cross.bonds[e] as usize, i, f);
+                let (near, far) = q.derivatives();
+                for (node, value) in [(i, v * near), (q.far, v * far)] {
                     let u = unknowns.index[node];
                     if u != u32::MAX {
-                        touched.push(u as usize);
                         dense[u as usize] += value;
                     }
                 }
             }
         }
-        touched.sort_unstable();
-        touched.dedup();
         out.clear();
         out.extend(
-            touched
-                .into_iter()
-                .map(|u| (u, std::mem::take(&mut dense[u]))),
+            dense
+                .iter()
+                .enumerate()
+                .filter(|(_, v)| **v != 0.0)
+                .map(|(u, v)| (u, *v)),
         );
     }
 
@@ -418,17 +449,12 @@ impl NnppOperator<'_> {
         dt: f64,
         sources: &[LinearSource],
     ) {
-        let law = &self.species[k];
-        let zf = law.valence * self.bonds.thermal;
         system.fill(self.families, |i, add| {
             let mut diag = 1.0 / dt - sources[i][1];
             for b in self.families.range(i) {
-                let j = self.families.neighbors[b] as usize;
-                let d = f.bond_diffusivity(law, k, i, j);
-                let g1 = self.bonds.diffusion[b];
-                let g2 = self.bonds.migration[b] * zf * (f.potential[j] - f.potential[i]);
-                diag += d * (g1 - g2);
-                add(Some(b), -d * (g1 + g2));
+                let (near, far) = self.bond_coefficients(k, b, i, f).derivatives();
+                diag -= near;
+                add(Some(b), -far);
             }
             add(None, diag);
         });

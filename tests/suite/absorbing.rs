@@ -516,14 +516,7 @@ fn zz_wave_2d_long_energy() {
     let steps = std::env::var("STEPS").unwrap_or_else(|_| "100000".into());
     let geometry = format!("geometry={{sphere={{center=[0.0, 0.0], radius={radius}}}}}");
     let end = format!("time.end=\"{steps} steps\"");
-    let extra: Vec<String> = std::env::var("SET")
-        .map(|s| {
-            s.split(';')
-                .filter(|s| !s.is_empty())
-                .map(String::from)
-                .collect()
-        })
-        .unwrap_or_default();
+    let extra = crate::common::env_overrides("SET");
     let mut set: Vec<&str> = vec![geometry.as_str(), end.as_str()];
     set.extend(extra.iter().map(String::as_str));
     let s = scene("abc-wave-2d", Some("scaled"), &set);

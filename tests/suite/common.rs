@@ -3,6 +3,19 @@
 
 use peridyn::scene::Scene;
 
+/// The `;`-separated preset overrides in environment variable `name` (none if unset or empty):
+/// the exploration harnesses' `SET`.
+pub fn env_overrides(name: &str) -> Vec<String> {
+    std::env::var(name)
+        .map(|s| {
+            s.split(';')
+                .filter(|s| !s.is_empty())
+                .map(String::from)
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
 /// A scene from inline preset text.
 pub fn scene(text: &str) -> Scene {
     Scene::from_text("test.toml", text, None).unwrap_or_else(|e| panic!("{e}"))

@@ -402,11 +402,7 @@ fn branching_case_1_branches_at_35_microseconds() {
 fn dual_horizon_measurement() {
     let preset = std::env::var("PRESET").unwrap_or_else(|_| "crack-opening".into());
     let variant = std::env::var("PRESET_VARIANT").unwrap_or_else(|_| "small".into());
-    let sets: Vec<String> = std::env::var("SET")
-        .ok()
-        .filter(|s| !s.is_empty())
-        .map(|s| s.split(';').map(str::to_string).collect())
-        .unwrap_or_default();
+    let sets = crate::common::env_overrides("SET");
     let variant = (!variant.is_empty()).then_some(variant.as_str());
     let scene = Scene::load_with(&preset, variant, &sets).unwrap();
     let start = std::time::Instant::now();

@@ -36,9 +36,7 @@ fn volume_loss(variant: Option<&str>, set: &[String], steps: usize) -> Vec<f64> 
 #[ignore = "minutes: prints the volume-loss curves of a variant"]
 fn zz_volume_loss_curves() {
     let variant = std::env::var("NNPP_VARIANT").ok();
-    let set: Vec<String> = std::env::var("NNPP_SET")
-        .map(|s| s.split(';').map(String::from).collect())
-        .unwrap_or_default();
+    let set = crate::common::env_overrides("NNPP_SET");
     let steps: usize = std::env::var("NNPP_STEPS").map_or(56, |s| s.parse().unwrap());
     let start = std::time::Instant::now();
     {
