@@ -264,6 +264,40 @@ impl AbsorbingLayer {
         self.apply(&self.rate_weights, now, before, out);
     }
 
+    /// The spectral radius of absorbing node `a`'s own recurrence through `weights`: its
+    /// value at t^{n+1} from its own values at t^n and t^{n−1}, z² − A₀ z − A₁ (a companion
+    /// matrix of size `levels · components`). The first entry of every cloud is the node, and
+    /// no other absorbing node's cloud reaches it from ahead (the backward cone (4.86)), so on
+    /// the outermost ring this recurrence alone decides whether a disturbance grows.
+    fn own_radius(&self, weights: &[f64], a: usize) -> f64 {
+        let (levels, nc) = (self.levels(), self.components);
+        if weights.is_empty() {
+            return 0.0;
+        }
+        let n = levels * nc;
+        let w = &weights[self.offsets[a] * levels * nc * nc..];
+        let companion = nalgebra::DMatrix::from_fn(n, n, |r, c| {
+            if r < nc {
+                let (l, q) = (c / nc, c % nc);
+                w[(l * nc + q) * nc + r]
+            } else if c + nc == r {
+                1.0
+            } else {
+                0.0
+            }
+        });
+        companion
+            .complex_eigenvalues()
+            .iter()
+            .fold(0.0f64, |m, z| m.max(z.norm()))
+    }
+
+    /// The largest spectral radius of node `a`'s own recurrence over its value and rate rows.
+    pub fn own_growth(&self, a: usize) -> f64 {
+        self.own_radius(&self.value_weights, a)
+            .max(self.own_radius(&self.rate_weights, a))
+    }
+
     /// The largest ‖V‖ and cond(M) over the layer, and the node they occur at.
     pub fn worst(&self) -> Option<(NodeReport, NodeReport)> {
         let by = |f: fn(&NodeReport) -> f64| {

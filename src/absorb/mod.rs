@@ -135,6 +135,22 @@ pub fn scalar_modes<const D: usize>(
             modes.push(mode);
         }
     }
+    // The rest states: k = 0 has s = 0 and, damped, s = −2d ((4.53) with ω̃ = ±i d). No
+    // outgoing mode reproduces them exactly, and a layer whose weights do not sum to one makes
+    // a uniform offset (the 2D wave's slowly decaying tail) grow (docs/results.md).
+    if spec.rest_modes {
+        let rest = |s: f64| Mode {
+            wave_vector: [Complex::new(0.0, 0.0); D],
+            rate: Complex::new(s, 0.0),
+            polarization: None,
+        };
+        modes.push(rest(0.0));
+        if let ScalarFarField::Wave { damping, .. } = far
+            && damping > 0.0
+        {
+            modes.push(rest(-2.0 * damping));
+        }
+    }
     modes
 }
 

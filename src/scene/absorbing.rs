@@ -304,6 +304,14 @@ pub(super) fn absorbing(
         max_condition > 1.0,
         "(1, ∞)",
     )?;
+    let filter = table.filter.unwrap_or(0.0);
+    let filter = in_range(
+        ctx,
+        "absorbing.filter",
+        filter,
+        (0.0..=0.5).contains(&filter),
+        "[0, 0.5]",
+    )?;
     Ok(AbsorbingSpec {
         method,
         width,
@@ -323,6 +331,8 @@ pub(super) fn absorbing(
         max_norm,
         max_condition,
         thinning: table.thinning,
+        filter,
+        rest_modes: table.rest_modes,
     })
 }
 

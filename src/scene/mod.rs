@@ -314,6 +314,14 @@ pub struct AbsorbingSpec {
     pub max_norm: f64,
     pub max_condition: f64,
     pub thinning: bool,
+    /// ε of the layer's selective filter (0: none, the thesis): after each overwrite an absorbing
+    /// node's value becomes (1 − ε) u_a + ε · the mean of its lattice neighbours (not in the
+    /// thesis; see `sim::far_field::Filter`).
+    pub filter: f64,
+    /// Adds the far field's rest states to every node's modes: u = const (s = 0) and, for a
+    /// damped wave, u = e^{−2dt} (s = −2d), the k → 0 limits of (4.53) (not in the thesis;
+    /// see `absorb::scalar_modes`).
+    pub rest_modes: bool,
 }
 
 /// How fine nodes take their values from the coarse level in the multi-adaptive scheme.

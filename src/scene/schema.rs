@@ -515,6 +515,11 @@ pub struct AbsorbingTable {
     pub max_condition: Option<f64>,
     #[serde(default)]
     pub thinning: bool,
+    /// ε of the layer's selective filter, [0, 0.5] (0: none).
+    pub filter: Option<f64>,
+    /// Fit the far field's rest states (u = const, and e^{−2dt} for damped waves) too.
+    #[serde(default)]
+    pub rest_modes: bool,
 }
 
 #[derive(Debug, Clone, Deserialize)]

@@ -27,6 +27,56 @@ enum FarField<const D: usize> {
     Bond(BondFarField),
 }
 
+/// Where a filtered node's neighbour value comes from: the layer's new value of absorbing node
+/// `a` or the field's (already advanced) value of near-field node `j`.
+#[derive(Debug, Clone, Copy)]
+enum Source {
+    Layer(u32),
+    Field(u32),
+}
+
+/// The layer's selective filter (`absorbing.filter` = ε; not in the thesis). The fitted update
+/// amplifies a lattice sawtooth (k ≈ π/Δx, no group velocity) outwards ring by ring at the
+/// lattice-oblique angles of a disc (docs/results.md, "2D scalar layer, long runs"); after each
+/// overwrite every absorbing node becomes ũ_a = (1 − ε) u_a + ε ū_a, ū_a the mean of its lattice
+/// neighbours (within 1.01 Δx). A convex combination: it never raises max |u|. On a 2D lattice
+/// it multiplies a mode by 1 − ε (1 − (cos k_xΔx + cos k_yΔx)/2): the checkerboard by 1 − 2ε,
+/// a smooth wave by 1 − ε (kΔx)²/4 (Jacobi: all from the unfiltered new values).
+struct Filter {
+    strength: f64,
+    offsets: Vec<usize>,
+    sources: Vec<Source>,
+}
+
+impl Filter {
+    fn new(strength: f64, nodes: &[u32], families: &Families, spacing: f64, n: usize) -> Filter {
+        let mut index = vec![u32::MAX; n];
+        for (a, &i) in nodes.iter().enumerate() {
+            index[i as usize] = a as u32;
+        }
+        let mut offsets = vec![0];
+        let mut sources = Vec::new();
+        for &i in nodes {
+            let i = i as usize;
+            for e in families.offsets[i]..families.offsets[i + 1] {
+                if families.lengths[e] <= 1.01 * spacing {
+                    let j = families.neighbors[e];
+                    sources.push(match index[j as usize] {
+                        u32::MAX => Source::Field(j),
+                        a => Source::Layer(a),
+                    });
+                }
+            }
+            offsets.push(sources.len());
+        }
+        Filter {
+            strength,
+            offsets,
+            sources,
+        }
+    }
+}
+
 /// An absorbing layer and what it needs to be refitted at another Δt.
 pub struct Absorber<const D: usize> {
     pub spec: AbsorbingSpec,
@@ -40,6 +90,7 @@ pub struct Absorber<const D: usize> {
     /// The layer's new values and rates, one per absorbing node.
     pub values: Vec<f64>,
     pub rates: Vec<f64>,
+    filter: Option<Filter>,
 }
 
 impl<const D: usize> Absorber<D> {
@@ -117,6 +168,7 @@ impl<const D: usize> Absorber<D> {
             is_absorbing,
             values: vec![0.0; count],
             rates: vec![0.0; count],
+            filter: None,
         }
     }
 
@@ -183,6 +235,11 @@ impl<const D: usize> Absorber<D> {
             }
         };
         self.dt = dt;
+        if self.spec.filter > 0.0 && self.filter.is_none() {
+            let n = self.is_absorbing.len();
+            let filter = Filter::new(self.spec.filter, &self.layer.nodes, families, spacing, n);
+            self.filter = Some(filter);
+        }
     }
 
     /// Writes the layer's new values into the node field (`components` values per node).
@@ -195,11 +252,30 @@ impl<const D: usize> Absorber<D> {
         self.scatter(&self.rates, rates);
     }
 
+    /// The layer's new values `from` into `to`, through the filter if there is one (reading
+    /// near-field neighbours from `to`, which the loop never writes).
     fn scatter(&self, from: &[f64], to: &mut [f64]) {
         let nc = self.layer.components;
         for (a, &i) in self.layer.nodes.iter().enumerate() {
             let i = i as usize;
-            to[i * nc..(i + 1) * nc].copy_from_slice(&from[a * nc..(a + 1) * nc]);
+            for q in 0..nc {
+                to[i * nc + q] = match &self.filter {
+                    None => from[a * nc + q],
+                    Some(f) => {
+                        let around = &f.sources[f.offsets[a]..f.offsets[a + 1]];
+                        let sum: f64 = around
+                            .iter()
+                            .map(|s| match *s {
+                                Source::Layer(b) => from[b as usize * nc + q],
+                                Source::Field(j) => to[j as usize * nc + q],
+                            })
+                            .sum();
+                        let mean = sum / around.len().max(1) as f64;
+                        let own = from[a * nc + q];
+                        own + f.strength * (mean - own) * f64::from(u8::from(!around.is_empty()))
+                    }
+                };
+            }
         }
     }
 
@@ -254,6 +330,23 @@ impl<const D: usize> Absorber<D> {
                 self.spec.max_condition,
                 self.spec.cutoff
             ),
+            {
+                let growth: Vec<f64> = (0..self.layer.nodes.len())
+                    .map(|a| self.layer.own_growth(a))
+                    .collect();
+                let (at, worst) = growth
+                    .iter()
+                    .copied()
+                    .enumerate()
+                    .max_by(|a, b| a.1.total_cmp(&b.1))
+                    .unwrap_or((0, 0.0));
+                format!(
+                    "absorbing layer: own recurrence |z|max = {:.6} at node {} ({} nodes above 1)",
+                    worst,
+                    self.layer.nodes.get(at).copied().unwrap_or(0),
+                    growth.iter().filter(|&&g| g > 1.0 + 1e-12).count()
+                )
+            },
         ]
     }
 }

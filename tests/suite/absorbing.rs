@@ -544,3 +544,69 @@ fn zz_wave_2d_long_energy() {
     }
     eprintln!("{extra:?}: last {:?}", e.last());
 }
+
+/// Tuning aid: the one-step map's leading growth by power iteration. `scaled` on a disc of
+/// `RADIUS` starts from a random field and runs `STEPS` steps (default 20 000) with the
+/// options in `SET`; prints ‖u‖₂ over all nodes, its per-step growth, and where |u| peaks.
+#[test]
+#[ignore = "exploration"]
+fn zz_wave_2d_leading_mode() {
+    let radius = std::env::var("RADIUS").unwrap_or_else(|_| "26".into());
+    let steps: u64 = std::env::var("STEPS").map_or(20_000, |s| s.parse().unwrap());
+    let geometry = format!("geometry={{sphere={{center=[0.0, 0.0], radius={radius}}}}}");
+    let end = format!("time.end=\"{steps} steps\"");
+    let extra = crate::common::env_overrides("SET");
+    let mut set: Vec<&str> = vec![geometry.as_str(), end.as_str()];
+    set.extend(extra.iter().map(String::as_str));
+    let s = scene("abc-wave-2d", Some("scaled"), &set);
+    let mut sim = ScalarSimulation::<2>::new(&s).unwrap();
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut random: Vec<f64> = (0..sim.field().len())
+        .map(|_| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        })
+        .collect();
+    sim.set_field(&mut random);
+    let norm = |u: &[f64]| u.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let mut last = norm(sim.field());
+    let every = (steps / 20).max(1);
+    for n in 1..=steps {
+        if sim.step().is_err() {
+            eprintln!("step {n}: failed");
+            return;
+        }
+        if n % every == 0 {
+            let now = norm(sim.field());
+            let u = sim.field();
+            let peak = (0..u.len()).max_by(|a, b| u[*a].abs().total_cmp(&u[*b].abs())).unwrap();
+            let x = sim.positions()[peak];
+            eprintln!(
+                "step {n:7}: ‖u‖ {now:.3e}, growth/step {:+.3e}, peak at r {:.2}, {:.1}°",
+                (now / last).ln() / every as f64,
+                (x[0] * x[0] + x[1] * x[1]).sqrt(),
+                x[1].atan2(x[0]).to_degrees()
+            );
+            last = now;
+        }
+    }
+    if let Ok(angle) = std::env::var("RAY") {
+        // The field along the ray at `RAY` degrees: the mode's wavelength and where it lives.
+        let a: f64 = angle.parse::<f64>().unwrap().to_radians();
+        let (c, sn) = (a.cos(), a.sin());
+        let u = sim.field();
+        let mut on: Vec<(f64, f64)> = sim
+            .positions()
+            .iter()
+            .zip(u)
+            .filter(|(x, _)| (x[1] * c - x[0] * sn).abs() < 0.26 && x[0] * c + x[1] * sn > 0.0)
+            .map(|(x, v)| (x[0] * c + x[1] * sn, *v))
+            .collect();
+        on.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (r, v) in on {
+            eprintln!("ray r {r:7.3}: {v:+.4e}");
+        }
+    }
+}
