@@ -281,6 +281,17 @@ pub fn bond_modes(normal: &[f64; 2], spec: &AbsorbingSpec, far: &BondFarField) -
             }
         }
     }
+    // The rest states (k = 0): the two rigid translations, u = γ, u̇ = 0 (as the scalar rest
+    // mode; not in the thesis).
+    if spec.rest_modes {
+        for gamma in [[2.0, 0.0], [0.0, 2.0]] {
+            modes.push(Mode {
+                wave_vector: [Complex::new(0.0, 0.0); 2],
+                rate: Complex::new(0.0, 0.0),
+                polarization: Some(gamma),
+            });
+        }
+    }
     modes
 }
 

@@ -86,6 +86,35 @@ impl Families {
         }
     }
 
+    /// The families without the bonds that cross any of `cracks` (a scalar field's
+    /// notches: no interaction across a defect, seed-thesis-ch4-5 §3.8, §4.2.7).
+    pub fn without_crossing<const D: usize>(
+        &self,
+        positions: &[[f64; D]],
+        cracks: &[CrackGeometry],
+    ) -> Families {
+        let mut offsets = Vec::with_capacity(self.offsets.len());
+        offsets.push(0);
+        let mut neighbors = Vec::with_capacity(self.neighbors.len());
+        let mut lengths = Vec::with_capacity(self.lengths.len());
+        for (i, x) in positions.iter().enumerate() {
+            for b in self.range(i) {
+                let j = self.neighbors[b];
+                let cut = cracks.iter().any(|c| crosses(c, x, &positions[j as usize]));
+                if !cut {
+                    neighbors.push(j);
+                    lengths.push(self.lengths[b]);
+                }
+            }
+            offsets.push(neighbors.len());
+        }
+        Families {
+            offsets,
+            neighbors,
+            lengths,
+        }
+    }
+
     /// The families of two node sets side by side: `b`'s nodes numbered after `a`'s, no bond
     /// between the sets (the two levels of a multi-grid scene).
     pub fn concat(a: &Families, b: &Families) -> Families {
@@ -277,6 +306,25 @@ mod tests {
     use super::*;
     use crate::discretization::grid::Lattice;
     use crate::scene::Solid;
+
+    /// A notch at x = 2.5 across a 5 × 5 lattice (Δx = 1, radius 1.5): exactly the 5
+    /// horizontal and 8 diagonal pairs between columns 2 and 3 go, 26 directed bonds, and the
+    /// families stay symmetric.
+    #[test]
+    fn a_notch_removes_exactly_the_bonds_across_it() {
+        let positions: Vec<[f64; 2]> = (0..25).map(|k| [(k / 5) as f64, (k % 5) as f64]).collect();
+        let all = Families::build(&positions, 1.5);
+        let notch = CrackGeometry::Segment([2.5, -1.0], [2.5, 6.0]);
+        let cut = all.without_crossing(&positions, &[notch]);
+        assert_eq!(all.bond_count() - cut.bond_count(), 26);
+        for i in 0..25 {
+            for &j in &cut.neighbors[cut.range(i)] {
+                let (a, b) = (positions[i][0], positions[j as usize][0]);
+                assert!((a - 2.5) * (b - 2.5) > 0.0, "bond {i}–{j} crosses");
+                assert!(cut.neighbors[cut.range(j as usize)].contains(&(i as u32)));
+            }
+        }
+    }
 
     fn family_size_with_self<const D: usize>(m: usize) -> usize {
         let n = 2 * m + 3;

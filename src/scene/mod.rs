@@ -543,14 +543,9 @@ impl Scene {
             let mut merged: toml::Table = text.parse().map_err(|e| toml_error(e, &ctx))?;
             merged.remove("variants");
             if let Some(v) = variant {
-                let variant_table = base.variants.get(v).ok_or_else(|| {
-                    let known: Vec<&str> = base.variants.keys().map(String::as_str).collect();
-                    ctx.error(
-                        "variants",
-                        format!("no variant `{v}`; this preset has: {}", known.join(", ")),
-                    )
-                })?;
-                merge_tables(&mut merged, variant_table);
+                for table in variant_chain(&base.variants, v, &ctx)? {
+                    merge_tables(&mut merged, &table);
+                }
             }
             merge_tables(&mut merged, overrides);
             toml::Value::Table(merged)
@@ -625,6 +620,65 @@ fn override_error(file: &str, overrides: &toml::Table, e: toml::de::Error) -> Sc
         line: None,
         message: format!("{} (with overrides {overrides})", e.message().trim()),
     }
+}
+
+/// The tables a variant overlays, outermost first: a variant with `extends = "other"` is
+/// `other`'s overlay followed by its own (the `extends` key itself dropped); an unknown name or
+/// a cycle is an error naming the variant.
+fn variant_chain(
+    variants: &std::collections::BTreeMap<String, toml::Table>,
+    name: &str,
+    ctx: &ErrorContext,
+) -> Result<Vec<toml::Table>, SceneError> {
+    let mut chain: Vec<toml::Table> = Vec::new();
+    let mut seen: Vec<String> = Vec::new();
+    let mut current = name.to_string();
+    loop {
+        if seen.contains(&current) {
+            seen.push(current);
+            return Err(ctx.error(
+                &format!("variants.{name}.extends"),
+                format!(
+                    "the variants extend each other in a cycle: {}",
+                    seen.join(" → ")
+                ),
+            ));
+        }
+        let field = match seen.last() {
+            None => "variants".to_string(),
+            Some(child) => format!("variants.{child}.extends"),
+        };
+        let table = variants.get(&current).ok_or_else(|| {
+            let known: Vec<&str> = variants.keys().map(String::as_str).collect();
+            ctx.error(
+                &field,
+                format!(
+                    "no variant `{current}`; this preset has: {}",
+                    known.join(", ")
+                ),
+            )
+        })?;
+        let mut own = table.clone();
+        let parent = own.remove("extends");
+        chain.push(own);
+        seen.push(current);
+        current = match parent {
+            None => break,
+            Some(toml::Value::String(p)) => p,
+            Some(other) => {
+                return Err(ctx.error(
+                    &format!("{}.extends", field_of(&seen)),
+                    format!("write the name of another variant as a string, not {other}"),
+                ));
+            }
+        };
+    }
+    chain.reverse();
+    Ok(chain)
+}
+
+fn field_of(seen: &[String]) -> String {
+    format!("variants.{}", seen.last().map_or("", String::as_str))
 }
 
 /// Overlays a variant (or `--set` overrides) on the base table: tables merge key by key,

@@ -152,8 +152,15 @@ pub(super) fn validate(
             "material.model = \"osb\" runs its dual-horizon standard scheme only",
         ));
     }
-    if physics != Physics::Dynamics && !p.precracks.is_empty() {
-        return Err(ctx.error("precracks", "pre-cracks need physics = \"dynamics\""));
+    let cuts_bonds = matches!(
+        physics,
+        Physics::Dynamics | Physics::ScalarWave | Physics::Diffusion
+    );
+    if !cuts_bonds && !p.precracks.is_empty() {
+        return Err(ctx.error(
+            "precracks",
+            "pre-cracks need physics = \"dynamics\", \"scalar-wave\" or \"diffusion\"",
+        ));
     }
     let hybrid = hybrid(p, ctx, scheme.kind, spacing, horizon)?;
     let nernst_planck = super::nernst_planck::nernst_planck(p, ctx, dim, horizon)?;

@@ -252,31 +252,41 @@ impl<const D: usize> Absorber<D> {
         self.scatter(&self.rates, rates);
     }
 
-    /// The layer's new values `from` into `to`, through the filter if there is one (reading
-    /// near-field neighbours from `to`, which the loop never writes).
+    /// The layer's new values `from` into `to` (reading near-field neighbours from `to`,
+    /// which the loop never writes).
     fn scatter(&self, from: &[f64], to: &mut [f64]) {
         let nc = self.layer.components;
         for (a, &i) in self.layer.nodes.iter().enumerate() {
-            let i = i as usize;
             for q in 0..nc {
-                to[i * nc + q] = match &self.filter {
-                    None => from[a * nc + q],
-                    Some(f) => {
-                        let around = &f.sources[f.offsets[a]..f.offsets[a + 1]];
-                        let sum: f64 = around
-                            .iter()
-                            .map(|s| match *s {
-                                Source::Layer(b) => from[b as usize * nc + q],
-                                Source::Field(j) => to[j as usize * nc + q],
-                            })
-                            .sum();
-                        let mean = sum / around.len().max(1) as f64;
-                        let own = from[a * nc + q];
-                        own + f.strength * (mean - own) * f64::from(u8::from(!around.is_empty()))
-                    }
-                };
+                to[i as usize * nc + q] = self.filtered(from, a, q, |j| to[j * nc + q]);
             }
         }
+    }
+
+    /// Absorbing node `a`'s new value of component `q` (filtered if the layer has a filter),
+    /// `near(j)` the near field's already advanced component `q` at node `j`.
+    pub fn new_value(&self, a: usize, q: usize, near: impl Fn(usize) -> f64) -> f64 {
+        self.filtered(&self.values, a, q, near)
+    }
+
+    fn filtered(&self, from: &[f64], a: usize, q: usize, near: impl Fn(usize) -> f64) -> f64 {
+        let nc = self.layer.components;
+        let own = from[a * nc + q];
+        let Some(f) = &self.filter else {
+            return own;
+        };
+        let around = &f.sources[f.offsets[a]..f.offsets[a + 1]];
+        if around.is_empty() {
+            return own;
+        }
+        let sum: f64 = around
+            .iter()
+            .map(|s| match *s {
+                Source::Layer(b) => from[b as usize * nc + q],
+                Source::Field(j) => near(j as usize),
+            })
+            .sum();
+        own + f.strength * (sum / around.len() as f64 - own)
     }
 
     pub fn class_field(&self) -> ClassField {

@@ -275,6 +275,12 @@ impl<const D: usize> ScalarSimulation<D> {
                 (d, Some(grid))
             }
         };
+        if !scene.precracks.is_empty() {
+            // Scalar fields: a notch removes the bonds across it (no flux through a defect).
+            discretization.families = discretization
+                .families
+                .without_crossing(discretization.nodes.reference(), &scene.precracks);
+        }
         let n = discretization.len();
         let mut is_held = vec![false; n];
         for (layer, nodes) in scene.boundary.iter().zip(&discretization.layers) {

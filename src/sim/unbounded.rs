@@ -110,13 +110,16 @@ impl<const D: usize> BondLayer<D> {
         self.previous_velocity.copy_from_slice(velocity);
     }
 
-    /// y = x + u^{n+1} on the layer's nodes.
+    /// y = x + u^{n+1} on the layer's nodes (through the layer's filter, if any, reading the
+    /// near field's new displacements).
     pub fn overwrite_positions(&self, reference: &[[f64; D]], positions: &mut [[f64; D]]) {
-        let values = &self.absorber.values;
         for (a, &i) in self.absorber.layer.nodes.iter().enumerate() {
             let i = i as usize;
             for k in 0..D {
-                positions[i][k] = reference[i][k] + values[a * D + k];
+                let u = self
+                    .absorber
+                    .new_value(a, k, |j| positions[j][k] - reference[j][k]);
+                positions[i][k] = reference[i][k] + u;
             }
         }
     }

@@ -335,14 +335,68 @@ fn wave_2d_leaves_the_disc_through_the_layer() {
     assert!(a.reflected() < 0.1 * fixed.reflected());
     assert!(a.reflected() < first.reflected());
     assert!(a.max_error() < b.max_error());
-    let from = a.times.iter().position(|&t| t >= 24.0).unwrap();
-    let rising = a.energies[from..]
-        .windows(2)
-        .filter(|w| w[1] > w[0] * (1.0 + 1e-12))
-        .count();
+    let rising = rises_after(a, 24.0);
     assert_eq!(
         rising, 0,
         "the near-field energy rose at {rising} checks after t = 24"
+    );
+}
+
+/// How many checks from time `t` on see the near-field energy rise (relative 1e-12).
+fn rises_after(c: &Comparison, t: f64) -> usize {
+    let from = c.times.iter().position(|&s| s >= t).unwrap();
+    c.energies[from..]
+        .windows(2)
+        .filter(|w| w[1] > w[0] * (1.0 + 1e-12))
+        .count()
+}
+
+/// S8 scaled (thesis §4.2.7, Figs. 4.33–4.34; m = 3 as the thesis's δ = 0.75 at Δx = 0.25): two
+/// notches reflect the pulse, so fronts meet the layer at many angles. To t = 100 against r ≤ 75: the
+/// signal reflected to the probe (20, 10) stays below 10 % of a fixed boundary's and below the
+/// first-order boundary's, the near-field energy never rises once the pulse reaches the layer,
+/// and the larger near field (R = 42) matches the reference better at the probe than R = 26
+/// (the thesis's Fig. 4.34).
+#[test]
+fn wave_2d_with_notches_leaves_the_disc_through_the_layer() {
+    let reference = scene("abc-wave-2d", Some("notched-scaled-reference"), &[]);
+    let variants = [
+        "notched-scaled",
+        "notched-scaled-42",
+        "notched-scaled-fixed",
+        "notched-scaled-first-order",
+    ];
+    let scenes: Vec<Scene> = variants
+        .iter()
+        .map(|v| scene("abc-wave-2d", Some(v), &[]))
+        .collect();
+    let runs = lockstep::<2>(&scenes, &reference, 10);
+    for (v, c) in variants.iter().zip(&runs) {
+        eprintln!(
+            "S8 {v}: max |u − u_ref| = {:.3e}, reflected Σ(u − u_ref)² at the probe = {:.3e}, \
+             near-field energy {:.3e} → {:.3e}{}",
+            c.max_error(),
+            c.reflected(),
+            c.energies[0],
+            c.energies.last().unwrap(),
+            if c.diverged { " (diverged)" } else { "" }
+        );
+    }
+    let (r26, r42, fixed, first) = (&runs[0], &runs[1], &runs[2], &runs[3]);
+    assert!(!r26.diverged && !r42.diverged);
+    assert!(r26.reflected() < 0.1 * fixed.reflected());
+    assert!(r26.reflected() < first.reflected());
+    assert!(r42.reflected() < r26.reflected());
+    // The pulse's front (speed ≤ χ = 1) reaches each layer at t = R − δ.
+    assert_eq!(
+        rises_after(r26, 24.0),
+        0,
+        "R = 26: the near-field energy rose"
+    );
+    assert_eq!(
+        rises_after(r42, 40.0),
+        0,
+        "R = 42: the near-field energy rose"
     );
 }
 
@@ -417,24 +471,35 @@ fn absorbing_layers_are_stable_for_any_number_of_steps() {
     assert!(two > 1.0 + 1e-6, "{two}");
 }
 
-/// Long runs stay bounded (the issue's 10⁵ steps), S4 to t = 100: the near-field energy at the
-/// end is below its value when the pulse has left (t = 50) and never exceeds the initial
-/// energy. (S7 scaled does not hold this yet: its residual energy grows again after t ≈ 200 and
-/// passes the initial energy before 10⁵ steps; see docs/results.md.) Ignored in CI; run with
-/// `cargo test --release -- --ignored long_runs`.
+/// Long runs stay bounded (the issue's 10⁵ steps): S4 to t = 100 and S7 scaled to t = 1 000
+/// (100 times the time the pulse needs to leave). The near-field energy at the end is below its
+/// value when the pulse has left (t = 50) and never exceeds the initial energy; S7's must
+/// also keep falling: below 10⁻⁶ of its t = 50 value at the end (measured 1.9e-16 against
+/// 2.1e-2: without the rest modes and the filter a lattice sawtooth grew from t ≈ 700 on and
+/// passed the initial energy, docs/results.md). ≈ 2 min in CI.
 #[test]
-#[ignore]
 fn long_runs_stay_bounded() {
-    let s = scene("abc-wave-1d", None, &["time.end=\"100000 steps\""]);
-    let energies = energy_history::<1>(&s);
-    let initial = energies[0].1;
-    let at_50 = energies.iter().find(|(t, _)| *t >= 50.0).unwrap().1;
-    let last = energies.last().unwrap().1;
-    let top = energies.iter().fold(0.0f64, |a, e| a.max(e.1));
-    eprintln!(
-        "S4: energy {initial:.3e} → {at_50:.3e} (t = 50) → {last:.3e} (t = 100); max {top:.3e}"
+    let check = |name: &str, energies: &[(f64, f64)]| {
+        let initial = energies[0].1;
+        let at_50 = energies.iter().find(|(t, _)| *t >= 50.0).unwrap().1;
+        let last = energies.last().unwrap().1;
+        let top = energies.iter().fold(0.0f64, |a, e| a.max(e.1));
+        eprintln!(
+            "{name}: energy {initial:.3e} → {at_50:.3e} (t = 50) → {last:.3e} (t = {:.0}); max {top:.3e}",
+            energies.last().unwrap().0
+        );
+        assert!(last <= at_50 && top <= initial * (1.0 + 1e-9), "{name}");
+        (at_50, last)
+    };
+    let s4 = scene("abc-wave-1d", None, &["time.end=\"100000 steps\""]);
+    check("S4", &energy_history::<1>(&s4));
+    let s7 = scene(
+        "abc-wave-2d",
+        Some("scaled"),
+        &["time.end=\"100000 steps\""],
     );
-    assert!(last <= at_50 && top <= initial * (1.0 + 1e-9));
+    let (at_50, last) = check("S7 scaled", &energy_history::<2>(&s7));
+    assert!(last < 1e-6 * at_50, "S7's residual energy stopped falling");
 }
 
 fn energy_history<const D: usize>(s: &Scene) -> Vec<(f64, f64)> {
@@ -581,7 +646,9 @@ fn zz_wave_2d_leading_mode() {
         if n % every == 0 {
             let now = norm(sim.field());
             let u = sim.field();
-            let peak = (0..u.len()).max_by(|a, b| u[*a].abs().total_cmp(&u[*b].abs())).unwrap();
+            let peak = (0..u.len())
+                .max_by(|a, b| u[*a].abs().total_cmp(&u[*b].abs()))
+                .unwrap();
             let x = sim.positions()[peak];
             eprintln!(
                 "step {n:7}: ‖u‖ {now:.3e}, growth/step {:+.3e}, peak at r {:.2}, {:.1}°",

@@ -124,6 +124,34 @@ fn malformed_toml_gives_the_line() {
     assert_clear_error("broken.toml", &text, &[":8"]);
 }
 
+/// Variants extend each other: a chain overlays outermost first; an unknown parent or a cycle
+/// is an error naming the `extends` field.
+#[test]
+fn variants_extend_each_other() {
+    let text = format!(
+        "{GOOD}\n[variants.fine]\ndiscretization = {{ spacing = \"0.5 mm\" }}\n\
+         [variants.fine-long]\nextends = \"fine\"\ntime = {{ end = \"20 steps\" }}\n\
+         [variants.loop-a]\nextends = \"loop-b\"\n[variants.loop-b]\nextends = \"loop-a\"\n\
+         [variants.orphan]\nextends = \"nothing\"\n"
+    );
+    let s = peridyn::scene::Scene::from_text("v.toml", &text, Some("fine-long")).unwrap();
+    assert!((s.spacing - 0.5e-3).abs() < 1e-15 && (s.horizon - 1.5e-3).abs() < 1e-15);
+    let cycle = peridyn::scene::Scene::from_text("v.toml", &text, Some("loop-a"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        cycle.contains("variants.loop-a.extends") && cycle.contains("loop-a → loop-b → loop-a"),
+        "{cycle}"
+    );
+    let orphan = peridyn::scene::Scene::from_text("v.toml", &text, Some("orphan"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        orphan.contains("variants.orphan.extends") && orphan.contains("no variant `nothing`"),
+        "{orphan}"
+    );
+}
+
 #[test]
 fn unknown_preset_and_variant() {
     let out = peridyn(&["check", "no-such-preset"]);
