@@ -273,3 +273,117 @@ fn scan_bond_stability() {
         eprintln!("{set:?}: {}", line.join(" "));
     }
 }
+
+/// Tuning aid: the one-step map's leading growth by power iteration on `small` (linear at these
+/// amplitudes): a random displacement of 1e-9 m, `STEPS` steps (default 20 000) with the options
+/// in `SET`, the state scaled back to that size every STEPS/20 steps; prints the per-step
+/// growth of ‖u‖₂ and where |u| peaks.
+#[test]
+#[ignore = "exploration"]
+fn zz_bond_leading_mode() {
+    let steps: u64 = std::env::var("STEPS").map_or(20_000, |s| s.parse().unwrap());
+    let mut set = crate::common::env_overrides("SET");
+    set.push(format!("time.end=\"{steps} steps\""));
+    let s = Scene::load_with("abc-bond-2d", Some("small"), &set).unwrap();
+    let mut sim = DynamicSimulation::<2>::new(&s).unwrap();
+    let x: Vec<[f64; 2]> = sim.reference().to_vec();
+    let n = x.len();
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut state = sim.save_state();
+    let position: Vec<f64> = x
+        .as_flattened()
+        .iter()
+        .map(|p| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            p + 1e-9 * ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5)
+        })
+        .collect();
+    state.put_f64("position", position);
+    state.put_f64("velocity", vec![0.0; 2 * n]);
+    state.put_f64("acceleration", vec![0.0; 2 * n]);
+    sim.restore_state(&state).unwrap();
+    let norm = |sim: &DynamicSimulation<2>| {
+        sim.positions()
+            .iter()
+            .zip(&x)
+            .map(|(y, x)| (y[0] - x[0]).powi(2) + (y[1] - x[1]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    let size = norm(&sim);
+    let every = (steps / 20).max(1);
+    for k in 1..=steps {
+        if sim.step().is_err() {
+            eprintln!("step {k}: failed");
+            return;
+        }
+        if k % every == 0 {
+            let now = norm(&sim);
+            let y = sim.positions();
+            let peak = (0..n)
+                .max_by(|&a, &b| {
+                    let d = |i: usize| (y[i][0] - x[i][0]).hypot(y[i][1] - x[i][1]);
+                    d(a).total_cmp(&d(b))
+                })
+                .unwrap();
+            eprintln!(
+                "step {k:7}: growth/step {:+.3e}, peak at r {:.2} mm, {:.1}°",
+                (now / size).ln() / every as f64,
+                1e3 * x[peak][0].hypot(x[peak][1]),
+                x[peak][1].atan2(x[peak][0]).to_degrees()
+            );
+            // Back to the starting size: every displacement-like entry scaled alike.
+            let scale = size / now;
+            let mut st = sim.save_state();
+            let shrink = |v: &[f64]| v.iter().map(|a| a * scale).collect::<Vec<f64>>();
+            let u: Vec<f64> = sim
+                .positions()
+                .as_flattened()
+                .iter()
+                .zip(x.as_flattened())
+                .map(|(y, x)| x + (y - x) * scale)
+                .collect();
+            st.put_f64("position", u);
+            for name in [
+                "velocity",
+                "acceleration",
+                "absorbing/previous_displacement",
+                "absorbing/previous_velocity",
+            ] {
+                let v = shrink(st.f64(name, 2 * n).unwrap());
+                st.put_f64(name, v);
+            }
+            sim.restore_state(&st).unwrap();
+        }
+    }
+    if let Ok(angle) = std::env::var("RAY") {
+        // The mode along the ray at `RAY` degrees over two steps: its radial and tangential
+        // displacement, and whether it flips sign from step to step.
+        let a: f64 = angle.parse::<f64>().unwrap().to_radians();
+        let (c, sn) = (a.cos(), a.sin());
+        let before: Vec<[f64; 2]> = sim.positions().to_vec();
+        sim.step().unwrap();
+        let after = sim.positions();
+        let mut on: Vec<(f64, usize)> = (0..n)
+            .filter(|&i| {
+                (x[i][1] * c - x[i][0] * sn).abs() < 0.26e-3 && x[i][0] * c + x[i][1] * sn > 20e-3
+            })
+            .map(|i| (x[i][0] * c + x[i][1] * sn, i))
+            .collect();
+        on.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (r, i) in on {
+            let u = |y: &[f64; 2]| {
+                let (dx, dy) = (y[0] - x[i][0], y[1] - x[i][1]);
+                (dx * c + dy * sn, -dx * sn + dy * c)
+            };
+            let (r0, t0) = u(&before[i]);
+            let (r1, t1) = u(&after[i]);
+            eprintln!(
+                "ray r {:7.3} mm: radial {r0:+.3e} → {r1:+.3e}, tangential {t0:+.3e} → {t1:+.3e}",
+                1e3 * r
+            );
+        }
+    }
+}
