@@ -147,10 +147,43 @@ fn bond_pulse_leaves_the_disc_through_the_layer() {
         .filter(|(w, _)| w[1] > w[0] * (1.0 + 1e-9))
         .map(|(w, t)| format!("t = {t:.3e} s: {:.2e} → {:.2e} J", w[0], w[1]))
         .collect();
-    // Not met yet (issue 19): once ≈ 6 % of the energy is left (t ≈ 24 µs) the near-field
-    // energy rises by ≈ 1.7 % at a few checks, the start of the growth that makes the layer
-    // diverge near 3 000 steps (`long_bond_run_stays_bounded`). Reported, not asserted.
+    // Not met yet (issue 19): once ≈ 7 % of the energy is left (t ≈ 26 µs) the near-field
+    // energy rises by 1–2 % at a few checks (with the SVD cut-off 1e-10 as with the preset's
+    // 1e-2, which keeps long runs bounded: `long_bond_run_stays_bounded`). Reported, not asserted.
     eprintln!("S10 small: near-field energy rises after t = 5 µs: {rises:?}");
+}
+
+/// S10 `scaled` (r ≤ 50 mm, 31 417 nodes, 2 500 absorbing; the pulse of the base scene, to
+/// 0.05 ms) against `scaled-reference` (r ≤ 160 mm, 321 657 nodes: nothing comes back to r ≤ 50
+/// before 0.05 ms). Over the near field (r < 48 mm) the signal reflected to the probe stays
+/// below 10 % of what the free truncation lets through (the issue's bound against a reflecting
+/// boundary; measured 1.3·10⁻³ with the preset's cut-off 1e-2, 4.7·10⁻⁶ with 1e-10) and the
+/// largest error below a tenth of the free truncation's (measured 3.4·10⁻⁸ m against 8.5·10⁻⁷ m).
+#[test]
+fn scaled_bond_layer_matches_the_large_disc() {
+    let reference = scene("scaled-reference");
+    let free = Scene::load_with(
+        "abc-bond-2d",
+        Some("scaled"),
+        &["absorbing=false".to_string()],
+    )
+    .unwrap();
+    let runs = lockstep(&[scene("scaled"), free], &reference, 10, 48e-3 - 1e-9);
+    for (v, r) in ["scaled", "scaled, free"].iter().zip(&runs) {
+        eprintln!(
+            "S10 {v}: max |u − u_ref| = {:.3e} m, reflected Σ|u − u_ref|² at the probe = {:.3e} \
+             m², near-field energy {:.3e} → {:.3e} J{}",
+            r.max_error(),
+            r.reflected(),
+            r.energies.first().copied().unwrap_or(f64::NAN),
+            r.energies.last().copied().unwrap_or(f64::NAN),
+            if r.diverged { " (diverged)" } else { "" }
+        );
+    }
+    let (layer, free) = (&runs[0], &runs[1]);
+    assert!(!layer.diverged);
+    assert!(layer.max_error() < 0.1 * free.max_error());
+    assert!(layer.reflected() < 0.1 * free.reflected());
 }
 
 /// Tuning aid: `SCAN='a=1,b=2;a=3' cargo test --release -- --ignored scan_bond_layers` runs the
@@ -185,11 +218,12 @@ fn scan_bond_layers() {
 }
 
 /// Long runs stay bounded (the issue's 10⁵ steps; the thesis: 100 000 steps): `small` to
-/// 10⁵ steps (18 ms, 600 times the crossing time of the disc). The near-field energy at the end
-/// is below its value when the pulse has left (t = 0.03 ms) and never exceeds the initial
-/// energy. Ignored in CI (≈ 2 min); `cargo test --release -- --ignored long_bond_run`.
+/// 10⁵ steps (18 ms, 600 times the crossing time of the disc; ≈ 3 min on 2 cores). On an
+/// unbounded plane nothing is left in the disc by then, so the near-field energy at the end must
+/// be below 1 % of its value when the pulse has left (t = 0.03 ms), and it never exceeds the
+/// initial energy (measured with the preset's cut-off 1e-2: 9.1·10⁻² J → 4.6·10⁻⁵ J; with
+/// 1e-10 the layer diverges near 3 000 steps).
 #[test]
-#[ignore]
 fn long_bond_run_stays_bounded() {
     let s = Scene::load_with(
         "abc-bond-2d",
@@ -225,7 +259,7 @@ fn long_bond_run_stays_bounded() {
             .map(|(_, e)| format!("{e:.2e}"))
             .collect::<Vec<_>>()
     );
-    assert!(last <= at_pulse_gone && top <= initial * (1.0 + 1e-9));
+    assert!(last <= 1e-2 * at_pulse_gone && top <= initial * (1.0 + 1e-9));
 }
 
 /// Tuning aid: `SCAN='a=1;b=2' STEPS=20000 cargo test --release -- --ignored scan_bond_stability`
