@@ -21,6 +21,9 @@ struct Run {
     energies: Vec<f64>,
     /// (truncated, reference) displacement at the probe `p` at every check.
     probes: Vec<([f64; 2], [f64; 2])>,
+    /// (truncated, reference) energy Σ (½ ρ |v|² + W) V over the compared nodes at every check:
+    /// the reference's tells how the near field's own nodal energy behaves on an unbounded plane.
+    compared_energies: Vec<(f64, f64)>,
     diverged: bool,
 }
 
@@ -43,6 +46,25 @@ fn probe(f: &peridyn::frame::Frame) -> [f64; 2] {
         f.scalar("probe/p/displacement_x").unwrap(),
         f.scalar("probe/p/displacement_y").unwrap(),
     ]
+}
+
+/// Σ over `nodes` of (½ ρ |v|² + W) V, the per-node energy of (4.169).
+fn nodal_energy(sim: &DynamicSimulation<2>, nodes: impl Iterator<Item = usize>) -> f64 {
+    let (v, vol, rho) = (sim.velocities(), sim.volumes(), sim.density());
+    nodes
+        .map(|i| (0.5 * rho * (v[i][0].powi(2) + v[i][1].powi(2)) + sim.energy_density(i)) * vol[i])
+        .sum()
+}
+
+/// The checks from `from` on at which an energy series rises (relative 1e-9).
+fn rises(times: &[f64], energies: impl Iterator<Item = f64>, from: usize) -> Vec<String> {
+    let e: Vec<f64> = energies.collect();
+    e[from..]
+        .windows(2)
+        .zip(&times[from + 1..])
+        .filter(|(w, _)| w[1] > w[0] * (1.0 + 1e-9))
+        .map(|(w, t)| format!("t = {t:.3e} s: {:.2e} → {:.2e} J", w[0], w[1]))
+        .collect()
 }
 
 /// Steps `truncated` and `reference` together, comparing every `every` steps over the nodes
@@ -96,6 +118,9 @@ fn lockstep(truncated: &[Scene], reference: &Scene, every: u64, near: f64) -> Ve
                 let d1 = (u[a][1] - x[a][1]) - (y[k][1] - r[k][1]);
                 e.max(d0.hypot(d1))
             });
+            let far_energy = nodal_energy(&far, map.iter().map(|&(_, k)| k));
+            let own_energy = nodal_energy(sim, map.iter().map(|&(a, _)| a));
+            run.compared_energies.push((own_energy, far_energy));
             let f = sim.frame();
             run.times.push(f.time);
             run.errors.push(error);
@@ -141,16 +166,22 @@ fn bond_pulse_leaves_the_disc_through_the_layer() {
     assert!(modes.reflected() < first.reflected());
     assert!(modes.max_error() < free.max_error());
     let from = modes.times.iter().position(|&t| t >= 5e-6).unwrap();
-    let rises: Vec<String> = modes.energies[from..]
-        .windows(2)
-        .zip(&modes.times[from + 1..])
-        .filter(|(w, _)| w[1] > w[0] * (1.0 + 1e-9))
-        .map(|(w, t)| format!("t = {t:.3e} s: {:.2e} → {:.2e} J", w[0], w[1]))
-        .collect();
+    let own = rises(&modes.times, modes.energies.iter().copied(), from);
+    let compared = rises(
+        &modes.times,
+        modes.compared_energies.iter().map(|e| e.0),
+        from,
+    );
+    let reference = rises(
+        &modes.times,
+        modes.compared_energies.iter().map(|e| e.1),
+        from,
+    );
+    eprintln!("S10 small: the compared nodes' energy rises at {compared:?}; the reference's at {reference:?}");
     // Not met yet (issue 19): once ≈ 7 % of the energy is left (t ≈ 26 µs) the near-field
     // energy rises by 1–2 % at a few checks (with the SVD cut-off 1e-10 as with the preset's
     // 1e-2, which keeps long runs bounded: `long_bond_run_stays_bounded`). Reported, not asserted.
-    eprintln!("S10 small: near-field energy rises after t = 5 µs: {rises:?}");
+    eprintln!("S10 small: near-field energy rises after t = 5 µs: {own:?}");
 }
 
 /// S10 `scaled` (r ≤ 50 mm, 31 417 nodes, 2 500 absorbing; the pulse of the base scene, to
