@@ -17,9 +17,42 @@ pub struct Fit {
     pub rank: usize,
 }
 
+/// How the pseudo-inverse treats small singular values σ (relative to σ_max): dropped below
+/// `cutoff` (LAPACK's RCOND, seed-thesis-ch4-5 §3.7), and with `tikhonov` = λ > 0 the kept ones
+/// inverted as σ/(σ² + (λ σ_max)²) instead of 1/σ (Tikhonov's filter factors: a smooth
+/// roll-off where the cut-off is a step; not in the thesis, docs/results.md "S10's long run").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pseudoinverse {
+    pub cutoff: f64,
+    pub tikhonov: f64,
+}
+
+impl Pseudoinverse {
+    /// The plain Moore–Penrose inverse with a relative cut-off.
+    pub fn cut(cutoff: f64) -> Self {
+        Pseudoinverse {
+            cutoff,
+            tikhonov: 0.0,
+        }
+    }
+
+    /// What σ contributes to M⁺ (`None`: dropped), σ_max = `largest`.
+    fn inverse(&self, value: f64, largest: f64) -> Option<f64> {
+        if value <= self.cutoff * largest || value == 0.0 {
+            return None;
+        }
+        let lambda = self.tikhonov * largest;
+        Some(value / (value * value + lambda * lambda))
+    }
+}
+
 /// ψ M⁺ for `matrix` (cloud values × modes) and the mode row `psi` (one entry per mode).
-pub fn min_norm_row(matrix: DMatrix<Complex<f64>>, psi: &[Complex<f64>], cutoff: f64) -> Fit {
-    let mut fits = min_norm_rows(matrix, &[psi], cutoff);
+pub fn min_norm_row(
+    matrix: DMatrix<Complex<f64>>,
+    psi: &[Complex<f64>],
+    inverse: Pseudoinverse,
+) -> Fit {
+    let mut fits = min_norm_rows(matrix, &[psi], inverse);
     fits.swap_remove(0)
 }
 
@@ -28,7 +61,7 @@ pub fn min_norm_row(matrix: DMatrix<Complex<f64>>, psi: &[Complex<f64>], cutoff:
 pub fn min_norm_rows(
     matrix: DMatrix<Complex<f64>>,
     targets: &[&[Complex<f64>]],
-    cutoff: f64,
+    inverse: Pseudoinverse,
 ) -> Vec<Fit> {
     let svd = matrix.svd(true, true);
     let (Some(u), Some(v_t)) = (svd.u.as_ref(), svd.v_t.as_ref()) else {
@@ -37,7 +70,6 @@ pub fn min_norm_rows(
     let sigma = &svd.singular_values;
     let largest = sigma.iter().fold(0.0f64, |a, &s| a.max(s));
     let smallest = sigma.iter().fold(f64::INFINITY, |a, &s| a.min(s));
-    let keep = cutoff * largest;
     let condition = if smallest > 0.0 {
         largest / smallest
     } else {
@@ -51,15 +83,15 @@ pub fn min_norm_rows(
             let mut rank = 0;
             let mut row = vec![Complex::new(0.0, 0.0); u.nrows()];
             for (s, &value) in sigma.iter().enumerate() {
-                if value <= keep || value == 0.0 {
+                let Some(inverse) = inverse.inverse(value, largest) else {
                     continue;
-                }
+                };
                 rank += 1;
                 // (ψ V)_s = Σ_b ψ_b conj(Vᵀ_{s b}).
                 let coefficient: Complex<f64> = (0..psi.len())
                     .map(|b| psi[b] * v_t[(s, b)].conj())
                     .sum::<Complex<f64>>()
-                    / value;
+                    * inverse;
                 for (r, out) in row.iter_mut().enumerate() {
                     *out += coefficient * u[(r, s)].conj();
                 }
@@ -88,7 +120,7 @@ mod tests {
         // 2 values, 3 modes.
         let m = DMatrix::from_row_slice(2, 3, &[c(1.0), c(2.0), c(0.0), c(0.0), c(1.0), c(1.0)]);
         let psi = [c(1.0), c(1.0), c(1.0)];
-        let fit = min_norm_row(m.clone(), &psi, 1e-12);
+        let fit = min_norm_row(m.clone(), &psi, Pseudoinverse::cut(1e-12));
         assert_eq!(fit.rank, 2);
         // The minimum-norm p for data g is Mᴴ(MMᴴ)⁻¹ g, so V = ψ Mᴴ (M Mᴴ)⁻¹: check against it.
         let mh = m.adjoint();
@@ -104,13 +136,31 @@ mod tests {
     #[test]
     fn cutoff_drops_small_singular_values() {
         let m = DMatrix::from_row_slice(2, 2, &[c(1.0), c(0.0), c(0.0), c(1e-14)]);
-        let fit = min_norm_row(m.clone(), &[c(1.0), c(1.0)], 1e-10);
+        let fit = min_norm_row(m.clone(), &[c(1.0), c(1.0)], Pseudoinverse::cut(1e-10));
         assert_eq!(fit.rank, 1);
         assert!((fit.row[0] - c(1.0)).norm() < 1e-14 && fit.row[1].norm() < 1e-14);
         assert!((fit.condition - 1e14).abs() < 1.0);
-        let all = min_norm_row(m, &[c(1.0), c(1.0)], 0.0);
+        let all = min_norm_row(m, &[c(1.0), c(1.0)], Pseudoinverse::cut(0.0));
         assert_eq!(all.rank, 2);
         assert!((all.row[1] - c(1e14)).norm() < 1.0);
+    }
+
+    /// Tikhonov's filter factors: ψ M⁺ becomes ψ (MᴴM + λ²σ_max² I)⁻¹ Mᴴ, checked against that
+    /// closed form on a diagonal M (σ = 1 and 0.01, λ = 0.1: factors 1/1.01 and 0.01/0.0101).
+    #[test]
+    fn tikhonov_rolls_off_small_singular_values() {
+        let m = DMatrix::from_row_slice(2, 2, &[c(1.0), c(0.0), c(0.0), c(0.01)]);
+        let inverse = Pseudoinverse {
+            cutoff: 1e-12,
+            tikhonov: 0.1,
+        };
+        let fit = min_norm_row(m, &[c(1.0), c(1.0)], inverse);
+        assert!((fit.row[0] - c(1.0 / 1.01)).norm() < 1e-14, "{:?}", fit.row);
+        assert!(
+            (fit.row[1] - c(0.01 / (1e-4 + 1e-2))).norm() < 1e-12,
+            "{:?}",
+            fit.row
+        );
     }
 
     /// Complex modes: a cloud sampled exactly on one mode is extrapolated exactly.
@@ -121,7 +171,7 @@ mod tests {
         let mode = |x: f64, kk: f64| Complex::new(0.0, kk * x).exp();
         let m = DMatrix::from_fn(xs.len(), k.len(), |r, b| mode(xs[r], k[b]));
         let psi: Vec<_> = k.iter().map(|&kk| mode(0.7, kk)).collect();
-        let fit = min_norm_row(m, &psi, 1e-14);
+        let fit = min_norm_row(m, &psi, Pseudoinverse::cut(1e-14));
         let data: Vec<_> = xs.iter().map(|&x| 2.0 * mode(x, 0.9)).collect();
         let got: Complex<f64> = fit.row.iter().zip(&data).map(|(v, g)| v * g).sum();
         assert!((got - 2.0 * mode(0.7, 0.9)).norm() < 1e-11, "{got}");

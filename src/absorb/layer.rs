@@ -6,7 +6,7 @@
 
 use nalgebra::{Complex, DMatrix};
 
-use super::fit::{Fit, min_norm_rows};
+use super::fit::{Fit, Pseudoinverse, min_norm_rows};
 
 /// One far-field mode ψ = exp(a·x̄ + s t̄) about an absorbing node (x̄ = x − x_i): a real
 /// diffusion mode exp(k N·x̄ + ω̄ t̄) (4.25) or a damped outgoing wave
@@ -93,7 +93,7 @@ fn fit_rows<const D: usize>(
     components: usize,
     dt: f64,
     scaled: bool,
-    cutoff: f64,
+    inverse: Pseudoinverse,
 ) -> Vec<Fit> {
     let xi = positions[spec.node as usize];
     let local: Vec<[f64; D]> = spec
@@ -123,7 +123,7 @@ fn fit_rows<const D: usize>(
         })
         .collect();
     let targets: Vec<&[Complex<f64>]> = targets.iter().map(Vec::as_slice).collect();
-    min_norm_rows(matrix, &targets, cutoff)
+    min_norm_rows(matrix, &targets, inverse)
 }
 
 /// The largest |Re V_j| over rows.
@@ -149,7 +149,7 @@ impl AbsorbingLayer {
         specs: &[CloudSpec<D>],
         levels: Levels,
         dt: f64,
-        cutoff: f64,
+        inverse: Pseudoinverse,
     ) -> AbsorbingLayer {
         use rayon::prelude::*;
         let times: &[f64] = match levels {
@@ -164,7 +164,7 @@ impl AbsorbingLayer {
         let fitted: Vec<(Vec<Fit>, Vec<Fit>)> = specs
             .par_iter()
             .map(|s| {
-                let rows = |scaled| fit_rows(positions, s, times, components, dt, scaled, cutoff);
+                let rows = |scaled| fit_rows(positions, s, times, components, dt, scaled, inverse);
                 let value = rows(false);
                 let rate = if levels == Levels::Two {
                     rows(true)
@@ -335,7 +335,13 @@ mod tests {
             modes,
             cloud: vec![0, 1, 2],
         };
-        let layer = AbsorbingLayer::fit(&positions, &[spec], Levels::One, 1e-3, 1e-15);
+        let layer = AbsorbingLayer::fit(
+            &positions,
+            &[spec],
+            Levels::One,
+            1e-3,
+            Pseudoinverse::cut(1e-15),
+        );
         let want = [1.0518, -0.1042, 0.0524];
         for (got, want) in layer.value_weights.iter().zip(want) {
             assert!((got - want).abs() < 1e-4, "{:?}", layer.value_weights);

@@ -9,6 +9,7 @@ pub mod fit;
 pub mod layer;
 
 pub use dispersion::{BondLattice, ScalarLattice};
+pub use fit::Pseudoinverse;
 pub use layer::{AbsorbingLayer, CloudSpec, Levels, Mode, NodeReport};
 
 use nalgebra::Complex;
@@ -341,7 +342,16 @@ impl<const D: usize> Clouds<'_, D> {
                 .collect()
         };
         let fit = |thin: &[u32]| {
-            AbsorbingLayer::fit(self.positions, &specs(thin), levels, dt, spec.cutoff)
+            AbsorbingLayer::fit(
+                self.positions,
+                &specs(thin),
+                levels,
+                dt,
+                Pseudoinverse {
+                    cutoff: spec.cutoff,
+                    tikhonov: spec.tikhonov,
+                },
+            )
         };
         let mut layer = fit(&thin);
         if !spec.thinning {

@@ -290,6 +290,14 @@ pub(super) fn absorbing(
         (0.0..1.0).contains(&cutoff),
         "[0, 1)",
     )?;
+    let tikhonov = table.tikhonov.unwrap_or(0.0);
+    let tikhonov = in_range(
+        ctx,
+        "absorbing.tikhonov",
+        tikhonov,
+        (0.0..1.0).contains(&tikhonov),
+        "[0, 1)",
+    )?;
     // ‖V‖ ≤ 2 for scalar waves, ≤ 1 for bond-based PD (§4.2.3, §4.3.4; erratum 8: a setting).
     let max_norm = positive(
         ctx,
@@ -327,6 +335,7 @@ pub(super) fn absorbing(
             Dispersion::Local
         }),
         cutoff,
+        tikhonov,
         cone: table.cone.unwrap_or(wave),
         max_norm,
         max_condition,

@@ -307,6 +307,9 @@ pub struct AbsorbingSpec {
     pub dispersion: Dispersion,
     /// Relative SVD cut-off of the pseudo-inverse (seed-thesis-ch4-5 §3.7).
     pub cutoff: f64,
+    /// λ of Tikhonov's filter factors σ/(σ² + (λ σ_max)²) in the pseudo-inverse (0: none, the
+    /// thesis; see `absorb::Pseudoinverse`).
+    pub tikhonov: f64,
     /// Clouds only behind the node (backward cone (4.86)).
     pub cone: bool,
     /// ‖V‖_max and cond(M) limits: `check` flags nodes above them; with `thinning` their clouds

@@ -510,6 +510,8 @@ pub struct AbsorbingTable {
     pub wave_number_set: super::WaveNumberSet,
     pub dispersion: Option<super::Dispersion>,
     pub cutoff: Option<f64>,
+    /// λ of Tikhonov's filter factors, relative to σ_max, [0, 1) (0: none).
+    pub tikhonov: Option<f64>,
     pub cone: Option<bool>,
     pub max_norm: Option<f64>,
     pub max_condition: Option<f64>,

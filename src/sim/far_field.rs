@@ -329,7 +329,8 @@ impl<const D: usize> Absorber<D> {
             ),
             format!(
                 "absorbing layer: max ‖Re V‖ = {:.4} at node {} ({} above the limit {}); max \
-                 cond(M) = {:.3e} at node {} ({} above {:.1e}; SVD cut-off {:.1e})",
+                 cond(M) = {:.3e} at node {} ({} above {:.1e}; SVD cut-off {:.1e}, Tikhonov \
+                 λ {:.1e})",
                 norm.norm,
                 norm.node,
                 above(&|r| r.norm > self.spec.max_norm),
@@ -338,7 +339,8 @@ impl<const D: usize> Absorber<D> {
                 cond.node,
                 above(&|r| r.condition > self.spec.max_condition),
                 self.spec.max_condition,
-                self.spec.cutoff
+                self.spec.cutoff,
+                self.spec.tikhonov
             ),
             {
                 let growth: Vec<f64> = (0..self.layer.nodes.len())
