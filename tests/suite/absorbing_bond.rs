@@ -39,6 +39,19 @@ impl Run {
     fn max_error(&self) -> f64 {
         self.errors.iter().fold(0.0, |a: f64, &e| a.max(e))
     }
+
+    /// One line of figures for the test log.
+    fn report(&self, variant: &str) {
+        eprintln!(
+            "S10 {variant}: max |u − u_ref| = {:.3e} m, reflected Σ|u − u_ref|² at the probe = \
+             {:.3e} m², near-field energy {:.3e} → {:.3e} J{}",
+            self.max_error(),
+            self.reflected(),
+            self.energies.first().copied().unwrap_or(f64::NAN),
+            self.energies.last().copied().unwrap_or(f64::NAN),
+            if self.diverged { " (diverged)" } else { "" }
+        );
+    }
 }
 
 fn probe(f: &peridyn::frame::Frame) -> [f64; 2] {
@@ -150,15 +163,7 @@ fn bond_pulse_leaves_the_disc_through_the_layer() {
     let scenes: Vec<Scene> = variants.iter().map(|v| scene(v)).collect();
     let runs = lockstep(&scenes, &reference, 5, 28e-3 - 1e-9);
     for (v, r) in variants.iter().zip(&runs) {
-        eprintln!(
-            "S10 {v}: max |u − u_ref| = {:.3e} m, reflected Σ|u − u_ref|² at the probe = {:.3e} \
-             m², near-field energy {:.3e} → {:.3e} J{}",
-            r.max_error(),
-            r.reflected(),
-            r.energies.first().copied().unwrap_or(f64::NAN),
-            r.energies.last().copied().unwrap_or(f64::NAN),
-            if r.diverged { " (diverged)" } else { "" }
-        );
+        r.report(v);
     }
     let (modes, first, fixed, free) = (&runs[0], &runs[1], &runs[2], &runs[3]);
     assert!(!modes.diverged && !first.diverged);
@@ -204,15 +209,7 @@ fn scaled_bond_layer_matches_the_large_disc() {
     .unwrap();
     let runs = lockstep(&[scene("scaled"), free], &reference, 10, 48e-3 - 1e-9);
     for (v, r) in ["scaled", "scaled, free"].iter().zip(&runs) {
-        eprintln!(
-            "S10 {v}: max |u − u_ref| = {:.3e} m, reflected Σ|u − u_ref|² at the probe = {:.3e} \
-             m², near-field energy {:.3e} → {:.3e} J{}",
-            r.max_error(),
-            r.reflected(),
-            r.energies.first().copied().unwrap_or(f64::NAN),
-            r.energies.last().copied().unwrap_or(f64::NAN),
-            if r.diverged { " (diverged)" } else { "" }
-        );
+        r.report(v);
     }
     let (layer, free) = (&runs[0], &runs[1]);
     assert!(!layer.diverged);
