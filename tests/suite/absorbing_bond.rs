@@ -253,7 +253,9 @@ fn scan_bond_layers() {
 /// unbounded plane nothing is left in the disc by then, so the near-field energy at the end must
 /// be below 1 % of its value when the pulse has left (t = 0.03 ms), and it never exceeds the
 /// initial energy (measured with the preset's Tikhonov λ = 2e-3: 7.8·10⁻² J → 3.0·10⁻⁵ J;
-/// with the plain pseudo-inverse the layer diverges near 3 000 steps).
+/// with the plain pseudo-inverse the layer diverges near 3 000 steps). Not stable for ever:
+/// from 1.4·10⁵ steps a mode next to the layer on the lattice axes grows (≈ 2.7·10⁻⁴ per step)
+/// and passes the initial energy before 2·10⁵ (docs/results.md, "S10's long run").
 #[test]
 fn long_bond_run_stays_bounded() {
     let s = Scene::load_with(
