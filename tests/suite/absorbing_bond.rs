@@ -196,8 +196,8 @@ fn bond_pulse_leaves_the_disc_through_the_layer() {
 /// 0.05 ms) against `scaled-reference` (r ≤ 160 mm, 321 657 nodes: nothing comes back to r ≤ 50
 /// before 0.05 ms). Over the near field (r < 48 mm) the signal reflected to the probe stays
 /// below 10 % of what the free truncation lets through (the bound against a reflecting
-/// boundary; measured 6.3·10⁻⁵ with the preset's Tikhonov λ = 2e-3, 4.7·10⁻⁶ without) and the
-/// largest error below a tenth of the free truncation's (measured 9.5·10⁻⁹ m against 8.5·10⁻⁷ m).
+/// boundary; 4.7·10⁻⁶ with the plain fit, the preset's figure in the test log and
+/// docs/results.md) and the largest error below a tenth of the free truncation's (8.5·10⁻⁷ m).
 #[test]
 fn scaled_bond_layer_matches_the_large_disc() {
     let reference = scene("scaled-reference");
@@ -252,10 +252,9 @@ fn scan_bond_layers() {
 /// 10⁵ steps (18 ms, 600 times the crossing time of the disc; ≈ 3 min on 2 cores). On an
 /// unbounded plane nothing is left in the disc by then, so the near-field energy at the end must
 /// be below 1 % of its value when the pulse has left (t = 0.03 ms), and it never exceeds the
-/// initial energy (measured with the preset's Tikhonov λ = 2e-3: 7.8·10⁻² J → 3.0·10⁻⁵ J;
-/// with the plain pseudo-inverse the layer diverges near 3 000 steps). Not stable for ever:
-/// from 1.4·10⁵ steps a mode next to the layer on the lattice axes grows (≈ 2.7·10⁻⁴ per step)
-/// and passes the initial energy before 2·10⁵ (docs/results.md, "S10's long run").
+/// initial energy (measured with the preset's Tikhonov λ = 2e-3 and filter 0.5: 8.0·10⁻² J →
+/// 6.3·10⁻⁵ J, and 3.8·10⁻⁶ J at 2·10⁵ steps; with the plain pseudo-inverse the layer diverges
+/// near 3 000 steps, with λ alone from 1.4·10⁵; docs/results.md, "S10's long run").
 #[test]
 fn long_bond_run_stays_bounded() {
     let s = Scene::load_with(
