@@ -524,9 +524,12 @@ impl DualHorizonSimulation {
         lap.charge(&mut self.run.stages, KICK);
         self.hold();
         lap.charge(&mut self.run.stages, CONSTRAINTS);
-        if self.refine() > 0 {
-            self.update_forces();
-        }
+        // No force pass after a split: the children carry their parent's acceleration (per
+        // unit mass) into the next step's half kick, so the split falls between two kicks by
+        // the unrefined forces at y^i, exactly the paper's leapfrog order (zeng2024 Sect. 3.3,
+        // seed-002 §4: forces, update, damage and strain, refine; the next step's forces see
+        // the refined body). Σ m a stays 0, so momentum is kept through the split.
+        self.refine();
         lap.charge(&mut self.run.stages, REFINE);
         self.run.clock.advance();
         let max_speed = max_speed2.sqrt();
