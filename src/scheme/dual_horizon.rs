@@ -53,11 +53,23 @@ pub struct ParticleTerms {
     pub strains: [f64; 2],
 }
 
-/// Directed bonds in CSR form with their dual lists.
+/// Marks a bond slot that belongs to no row (a row replaced by a split left it behind).
+const DEAD: u32 = u32::MAX;
+
+/// Directed bonds in CSR form with their dual lists. A split replaces only the rows it
+/// changes: their new bonds are appended and their old slots left dead (owner `DEAD`, μ = 0),
+/// and the dual lists of the particles they touch are appended likewise; the arrays are
+/// compacted when the dead slots outnumber half the live ones, so a split costs the rows it
+/// touches and the compaction is amortized over many splits (issue 17: families rebuilt
+/// locally, not a global rebuild per split). Every bond-parallel pass skips dead slots.
 #[derive(Debug, Clone, Default)]
 pub struct DualBonds {
-    /// Bonds of particle k: `offsets[k]..offsets[k + 1]`.
-    pub offsets: Vec<usize>,
+    /// Bonds of particle k: `starts[k]..ends[k]`.
+    starts: Vec<usize>,
+    ends: Vec<usize>,
+    /// Slots that belong to no row.
+    dead: usize,
+    /// Bond slots: the neighbor j of each, its μ and its two weights.
     pub neighbors: Vec<u32>,
     /// μ: 1 intact, 0 broken (irreversible).
     pub intact: Vec<u8>,
@@ -68,9 +80,12 @@ pub struct DualBonds {
     owner: Vec<u32>,
     /// |ξ| of each bond (the reference never changes under a bond).
     lengths: Vec<f64>,
-    /// Bonds j → k of each particle k: `dual[dual_offsets[k]..dual_offsets[k + 1]]`.
-    dual_offsets: Vec<usize>,
+    /// Bonds j → k of each particle k: `dual[dual_starts[k]..dual_ends[k]]`.
+    dual_starts: Vec<usize>,
+    dual_ends: Vec<usize>,
     dual: Vec<u32>,
+    /// Entries of `dual` in no particle's list.
+    dual_dead: usize,
     /// Particles whose moment fit fell back to scalar factors.
     pub fallbacks: usize,
     /// Per particle, the energy density from which the force pass also gives its strains
@@ -95,6 +110,13 @@ pub struct NewRow {
     /// 1 where the bond counts in the weight fit (not cut by a pre-crack: the pre-crack is a
     /// surface, bonds broken during the run soften the material).
     pub fitted: Vec<u8>,
+}
+
+/// |x_j − x_k|.
+fn bond_length(reference: &[[f64; 2]], k: usize, j: usize) -> f64 {
+    let (x, y) = (reference[k], reference[j]);
+    let xi = [y[0] - x[0], y[1] - x[1]];
+    (xi[0] * xi[0] + xi[1] * xi[1]).sqrt()
 }
 
 /// The family of particle k among `candidates`: j ≠ k with |x_j − x_k| < δ_k, sorted.
@@ -130,24 +152,44 @@ impl DualBonds {
             ..DualBonds::default()
         };
         let states: Vec<Vec<u8>> = rows.iter().map(|r| vec![1; r.len()]).collect();
-        bonds.assemble(body, &rows, &states, &states, None);
+        bonds.assemble(body, &rows, &states, &states);
         bonds
     }
 
     pub fn particle_count(&self) -> usize {
-        self.offsets.len().saturating_sub(1)
+        self.starts.len()
     }
 
+    /// Directed bonds in the particles' rows.
     pub fn bond_count(&self) -> usize {
+        self.neighbors.len() - self.dead
+    }
+
+    /// Bond slots, dead ones included: the length of `neighbors`, `intact` and the weights.
+    pub fn slot_count(&self) -> usize {
         self.neighbors.len()
     }
 
+    /// Particle k's bond slots.
     pub fn range(&self, k: usize) -> std::ops::Range<usize> {
-        self.offsets[k]..self.offsets[k + 1]
+        self.starts[k]..self.ends[k]
     }
 
     pub fn dual_bonds(&self, k: usize) -> &[u32] {
-        &self.dual[self.dual_offsets[k]..self.dual_offsets[k + 1]]
+        &self.dual[self.dual_starts[k]..self.dual_ends[k]]
+    }
+
+    /// The rows as a compact CSR: offsets (n + 1) and the neighbors in row order.
+    pub fn compact_rows(&self) -> (Vec<usize>, Vec<u32>) {
+        let n = self.particle_count();
+        let mut offsets = Vec::with_capacity(n + 1);
+        let mut neighbors = Vec::with_capacity(self.bond_count());
+        offsets.push(0);
+        for k in 0..n {
+            neighbors.extend_from_slice(&self.neighbors[self.range(k)]);
+            offsets.push(neighbors.len());
+        }
+        (offsets, neighbors)
     }
 
     pub fn weights(&self) -> BondWeights {
@@ -155,67 +197,150 @@ impl DualBonds {
     }
 
     /// Replaces the families of the particles in `rows` (the other particles keep theirs) for
-    /// a body of `body.reference.len()` particles; refits the weights of the replaced rows
-    /// and rebuilds the dual lists.
+    /// a body of `body.reference.len()` particles, touching only what they change: the new
+    /// rows are appended and fitted, the dual lists and damage denominators of the particles
+    /// they reach (old or new bonds) are renewed, and the arrays are compacted when the dead
+    /// slots outnumber half the live ones.
     pub fn replace_rows(&mut self, body: &Body, rows: &[NewRow]) {
         let n = body.reference.len();
-        let mut lists: Vec<Vec<u32>> = Vec::with_capacity(n);
-        let mut states: Vec<Vec<u8>> = Vec::with_capacity(n);
-        let mut surfaces: Vec<Vec<u8>> = vec![Vec::new(); n];
-        let old = self.particle_count();
-        for k in 0..n {
-            if k < old {
-                let r = self.range(k);
-                lists.push(self.neighbors[r.clone()].to_vec());
-                states.push(self.intact[r].to_vec());
-            } else {
-                lists.push(Vec::new());
-                states.push(Vec::new());
-            }
-        }
-        let mut refit = vec![false; n];
+        self.starts.resize(n, 0);
+        self.ends.resize(n, 0);
+        self.dual_starts.resize(n, 0);
+        self.dual_ends.resize(n, 0);
+        self.row_volume.resize(n, 0.0);
+        let mut touched = vec![false; n];
         for row in rows {
             let k = row.particle as usize;
-            lists[k] = row.neighbors.clone();
-            states[k] = row.states.clone();
-            surfaces[k] = row.fitted.clone();
-            refit[k] = true;
+            touched[k] = true;
+            for b in self.range(k) {
+                touched[self.neighbors[b] as usize] = true;
+                self.owner[b] = DEAD;
+                self.intact[b] = 0;
+            }
+            self.dead += self.range(k).len();
         }
-        self.assemble(body, &lists, &states, &surfaces, Some(&refit));
+        // The new rows at the end, with μ = the fit's flags until the fit has read them.
+        let first_new = self.neighbors.len();
+        for row in rows {
+            let k = row.particle as usize;
+            self.starts[k] = self.neighbors.len();
+            self.neighbors.extend_from_slice(&row.neighbors);
+            self.owner
+                .extend(std::iter::repeat_n(row.particle, row.neighbors.len()));
+            self.intact.extend_from_slice(&row.fitted);
+            self.lengths.extend(
+                row.neighbors
+                    .iter()
+                    .map(|&j| bond_length(body.reference, k, j as usize)),
+            );
+            self.ends[k] = self.neighbors.len();
+            for &j in &row.neighbors {
+                touched[j as usize] = true;
+            }
+        }
+        let total = self.neighbors.len();
+        for column in [
+            &mut self.weight_theta,
+            &mut self.weight_distortion,
+            &mut self.stretch,
+            &mut self.cosine,
+        ] {
+            column.resize(total, 0.0);
+        }
+        self.bond_force.resize(total, [0.0; 2]);
+        let replaced: Vec<usize> = rows.iter().map(|r| r.particle as usize).collect();
+        self.fallbacks += self.fit_rows(body, &replaced);
+        for row in rows {
+            let r = self.range(row.particle as usize);
+            self.intact[r].copy_from_slice(&row.states);
+        }
+        // The touched particles' dual lists: their old bonds still in a row, then the new
+        // bonds that reach them, in slot order.
+        let mut arriving: Vec<(u32, u32)> = (first_new..total)
+            .map(|b| (self.neighbors[b], b as u32))
+            .collect();
+        arriving.sort_unstable();
+        let mut next = 0;
+        for j in (0..n).filter(|&j| touched[j]) {
+            let start = self.dual.len();
+            let old = self.dual_starts[j]..self.dual_ends[j];
+            self.dual_dead += old.len();
+            for d in old {
+                let b = self.dual[d];
+                if self.owner[b as usize] != DEAD {
+                    self.dual.push(b);
+                }
+            }
+            while next < arriving.len() && (arriving[next].0 as usize) < j {
+                next += 1;
+            }
+            while next < arriving.len() && arriving[next].0 as usize == j {
+                self.dual.push(arriving[next].1);
+                next += 1;
+            }
+            self.dual_starts[j] = start;
+            self.dual_ends[j] = self.dual.len();
+        }
+        for j in (0..n).filter(|&j| touched[j]) {
+            self.row_volume[j] = self.row_volume_of(j, body.volumes);
+        }
+        if 2 * self.dead > self.bond_count() || 2 * self.dual_dead > self.bond_count() {
+            self.compact();
+        }
     }
 
-    /// Writes the CSR arrays from per-particle lists; fits the weights of the rows marked in
-    /// `refit` (all rows when `None`) over the bonds flagged in `fitted` and keeps the others'
-    /// (their lists are unchanged).
+    /// Moves every row's bonds together in particle order (dead slots dropped) and rebuilds
+    /// the dual lists; weights, states and lengths move with their bonds.
+    fn compact(&mut self) {
+        let n = self.particle_count();
+        let order: Vec<usize> = (0..n).flat_map(|k| self.range(k)).collect();
+        fn gather<T: Copy>(column: &mut Vec<T>, order: &[usize]) {
+            *column = order.iter().map(|&b| column[b]).collect();
+        }
+        gather(&mut self.neighbors, &order);
+        gather(&mut self.owner, &order);
+        gather(&mut self.intact, &order);
+        gather(&mut self.lengths, &order);
+        gather(&mut self.weight_theta, &order);
+        gather(&mut self.weight_distortion, &order);
+        let total = order.len();
+        self.stretch = vec![0.0; total];
+        self.cosine = vec![0.0; total];
+        self.bond_force = vec![[0.0; 2]; total];
+        let mut at = 0;
+        for k in 0..n {
+            let len = self.ends[k] - self.starts[k];
+            (self.starts[k], self.ends[k]) = (at, at + len);
+            at += len;
+        }
+        self.dead = 0;
+        self.rebuild_dual(n);
+    }
+
+    /// Writes the CSR arrays from per-particle lists and fits every row's weights over the
+    /// bonds flagged in `fitted`; `states` are the bonds' μ after the fit.
     fn assemble(
         &mut self,
         body: &Body,
         lists: &[Vec<u32>],
         states: &[Vec<u8>],
         fitted: &[Vec<u8>],
-        refit: Option<&[bool]>,
     ) {
         let n = lists.len();
-        let mut offsets = Vec::with_capacity(n + 1);
-        offsets.push(0);
+        self.starts.clear();
+        self.ends.clear();
+        let mut at = 0;
         for l in lists {
-            offsets.push(offsets[offsets.len() - 1] + l.len());
+            self.starts.push(at);
+            at += l.len();
+            self.ends.push(at);
         }
-        let total = offsets[n];
-        let mut weight_theta = vec![0.0; total];
-        let mut weight_distortion = vec![0.0; total];
-        let old_particles = self.particle_count();
-        for k in 0..n {
-            let r = offsets[k]..offsets[k + 1];
-            let keep = refit.is_some_and(|f| !f[k]) && k < old_particles;
-            if keep {
-                let o = self.range(k);
-                weight_theta[r.clone()].copy_from_slice(&self.weight_theta[o.clone()]);
-                weight_distortion[r].copy_from_slice(&self.weight_distortion[o]);
-            }
-        }
-        self.offsets = offsets;
+        let total = at;
+        self.dead = 0;
         self.neighbors = lists.concat();
+        self.owner = (0..n)
+            .flat_map(|k| std::iter::repeat_n(k as u32, lists[k].len()))
+            .collect();
         // The fit reads the bonds a row is fitted over; the states are set after it.
         self.intact = (0..n)
             .flat_map(|k| {
@@ -227,70 +352,81 @@ impl DualBonds {
                 row.iter().copied()
             })
             .collect();
-        self.weight_theta = weight_theta;
-        self.weight_distortion = weight_distortion;
-        let fit: Vec<usize> = (0..n)
-            .filter(|&k| refit.is_none_or(|f| f[k]) || k >= old_particles)
+        self.lengths = (0..total)
+            .map(|b| {
+                bond_length(
+                    body.reference,
+                    self.owner[b] as usize,
+                    self.neighbors[b] as usize,
+                )
+            })
             .collect();
+        self.weight_theta = vec![0.0; total];
+        self.weight_distortion = vec![0.0; total];
+        let all: Vec<usize> = (0..n).collect();
+        self.fallbacks = self.fit_rows(body, &all);
+        self.intact = states.concat();
+        self.stretch = vec![0.0; total];
+        self.cosine = vec![0.0; total];
+        self.bond_force = vec![[0.0; 2]; total];
+        self.rebuild_dual(n);
+        self.row_volume = (0..n)
+            .map(|k| self.row_volume_of(k, body.volumes))
+            .collect();
+    }
+
+    /// Fits the weights of `rows` (their bonds' μ flag the bonds fitted over); returns how
+    /// many fell back to scalar factors.
+    fn fit_rows(&mut self, body: &Body, rows: &[usize]) -> usize {
         let fitted: Vec<(Vec<f64>, Vec<f64>, bool)> =
-            fit.par_iter().map(|&k| self.fit_row(k, body)).collect();
-        let mut fallbacks = if refit.is_none() { 0 } else { self.fallbacks };
-        for (&k, (theta, distortion, fell_back)) in fit.iter().zip(fitted) {
+            rows.par_iter().map(|&k| self.fit_row(k, body)).collect();
+        let mut fallbacks = 0;
+        for (&k, (theta, distortion, fell_back)) in rows.iter().zip(fitted) {
             let r = self.range(k);
             self.weight_theta[r.clone()].copy_from_slice(&theta);
             self.weight_distortion[r].copy_from_slice(&distortion);
             fallbacks += usize::from(fell_back);
         }
-        self.fallbacks = fallbacks;
-        self.intact = states.concat();
-        self.owner = (0..n)
-            .flat_map(|k| std::iter::repeat_n(k as u32, lists[k].len()))
-            .collect();
-        let x = body.reference;
-        self.lengths = (0..total)
-            .map(|b| {
-                let (k, j) = (self.owner[b] as usize, self.neighbors[b] as usize);
-                let xi = [x[j][0] - x[k][0], x[j][1] - x[k][1]];
-                (xi[0] * xi[0] + xi[1] * xi[1]).sqrt()
-            })
-            .collect();
-        self.rebuild_dual(n);
-        self.row_volume = (0..n)
-            .map(|k| {
-                let own: f64 = self.neighbors[self.range(k)]
-                    .iter()
-                    .map(|&j| body.volumes[j as usize])
-                    .sum();
-                let dual: f64 = self
-                    .dual_bonds(k)
-                    .iter()
-                    .map(|&b| body.volumes[self.owner[b as usize] as usize])
-                    .sum();
-                own + dual
-            })
-            .collect();
-        self.stretch = vec![0.0; total];
-        self.cosine = vec![0.0; total];
-        self.bond_force = vec![[0.0; 2]; total];
+        fallbacks
     }
 
-    /// The dual lists by a counting sort of the bonds by target.
+    /// Σ_{H_k} V_j + Σ_{H'_k} V_j: the denominator of particle k's damage (14).
+    fn row_volume_of(&self, k: usize, volumes: &[f64]) -> f64 {
+        let own: f64 = self.neighbors[self.range(k)]
+            .iter()
+            .map(|&j| volumes[j as usize])
+            .sum();
+        let dual: f64 = self
+            .dual_bonds(k)
+            .iter()
+            .map(|&b| volumes[self.owner[b as usize] as usize])
+            .sum();
+        own + dual
+    }
+
+    /// The dual lists by a counting sort of the live bonds by target.
     fn rebuild_dual(&mut self, n: usize) {
         let mut counts = vec![0usize; n + 1];
-        for &j in &self.neighbors {
-            counts[j as usize + 1] += 1;
+        for (&j, &k) in self.neighbors.iter().zip(&self.owner) {
+            if k != DEAD {
+                counts[j as usize + 1] += 1;
+            }
         }
         for k in 0..n {
             counts[k + 1] += counts[k];
         }
         let mut fill = counts.clone();
-        let mut dual = vec![0u32; self.neighbors.len()];
-        for (b, &j) in self.neighbors.iter().enumerate() {
-            dual[fill[j as usize]] = b as u32;
-            fill[j as usize] += 1;
+        let mut dual = vec![0u32; counts[n]];
+        for (b, (&j, &k)) in self.neighbors.iter().zip(&self.owner).enumerate() {
+            if k != DEAD {
+                dual[fill[j as usize]] = b as u32;
+                fill[j as usize] += 1;
+            }
         }
-        self.dual_offsets = counts;
+        self.dual_starts = counts[..n].to_vec();
+        self.dual_ends = counts[1..].to_vec();
         self.dual = dual;
+        self.dual_dead = 0;
     }
 
     /// Refits every particle's weights over its bonds intact now: a pre-crack cut before the
@@ -304,7 +440,7 @@ impl DualBonds {
         let states: Vec<Vec<u8>> = (0..n)
             .map(|k| self.intact[self.range(k)].to_vec())
             .collect();
-        self.assemble(body, &lists, &states, &states, None);
+        self.assemble(body, &lists, &states, &states);
     }
 
     /// Particle k's two weight sets over its intact bonds (0 on broken ones), and whether its
@@ -402,6 +538,9 @@ impl DualBonds {
             .zip(self.intact.par_iter_mut())
             .enumerate()
             .map(|(b, ((s, c), mu))| {
+                if owner[b] == DEAD {
+                    return 0;
+                }
                 let (k, j) = (owner[b] as usize, neighbors[b] as usize);
                 let (x, y) = (body.reference, positions);
                 let xi = [x[j][0] - x[k][0], x[j][1] - x[k][1]];
@@ -418,13 +557,13 @@ impl DualBonds {
                 }
             })
             .sum();
-        let (offsets, intact) = (&self.offsets, &self.intact);
+        let (starts, ends, intact) = (&self.starts, &self.ends, &self.intact);
         let (stretch, cosine) = (&self.stretch, &self.cosine);
         let weight_theta = &self.weight_theta;
         out.par_iter_mut().enumerate().for_each(|(k, t)| {
             let c = &body.constants[k];
             let mut theta = 0.0;
-            for b in offsets[k]..offsets[k + 1] {
+            for b in starts[k]..ends[k] {
                 if intact[b] != 0 {
                     theta += c.dilatation_term(cosine[b], stretch[b], weight_theta[b]);
                 }
@@ -458,19 +597,19 @@ impl DualBonds {
                 *f = [scalar * eta[0], scalar * eta[1]];
             });
         let bond_force = &self.bond_force;
-        let (dual_offsets, dual) = (&self.dual_offsets, &self.dual);
+        let (dual_starts, dual_ends, dual) = (&self.dual_starts, &self.dual_ends, &self.dual);
         out.par_iter_mut().enumerate().for_each(|(k, t)| {
             let c = &body.constants[k];
             let mut force = [0.0; 2];
             let mut distortion = 0.0;
-            for b in offsets[k]..offsets[k + 1] {
+            for b in starts[k]..ends[k] {
                 force[0] += bond_force[b][0];
                 force[1] += bond_force[b][1];
                 if intact[b] != 0 {
                     distortion += c.distortion_energy(stretch[b], lengths[b], weight_distortion[b]);
                 }
             }
-            for &b in &dual[dual_offsets[k]..dual_offsets[k + 1]] {
+            for &b in &dual[dual_starts[k]..dual_ends[k]] {
                 force[0] -= bond_force[b as usize][0];
                 force[1] -= bond_force[b as usize][1];
             }

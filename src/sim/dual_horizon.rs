@@ -663,17 +663,18 @@ impl DualHorizonSimulation {
     /// The bonds as a `Families` view (crack-angle connectivity).
     fn families(&self) -> Families {
         let x = self.reference();
+        let (offsets, neighbors) = self.bonds.compact_rows();
         let lengths = (0..self.bonds.particle_count())
             .flat_map(|k| {
-                self.bonds.range(k).map(move |b| {
-                    let j = self.bonds.neighbors[b] as usize;
+                neighbors[offsets[k]..offsets[k + 1]].iter().map(move |&j| {
+                    let j = j as usize;
                     ((x[j][0] - x[k][0]).powi(2) + (x[j][1] - x[k][1]).powi(2)).sqrt()
                 })
             })
             .collect();
         Families {
-            offsets: self.bonds.offsets.clone(),
-            neighbors: self.bonds.neighbors.clone(),
+            offsets,
+            neighbors,
             lengths,
         }
     }
@@ -1026,7 +1027,7 @@ impl Stepper for DualHorizonSimulation {
         let clock = Clock::restore(state)?;
         let position = state.f64("position", 2 * n)?;
         let velocity = state.f64("velocity", 2 * n)?;
-        let intact = state.u8("intact", self.bonds.bond_count())?;
+        let intact = state.u8("intact", self.bonds.slot_count())?;
         let counters = state.u64("broken", 3)?;
         self.positions_mut()
             .as_flattened_mut()

@@ -147,11 +147,23 @@ struct Refined {
     nodes: Nodes<2>,
     columns: SplitColumns,
     bonds: DualBonds,
+    buckets: Buckets,
     material: OsbMaterial,
 }
 
 impl Refined {
     fn new(n: usize, weights: BondWeights, horizon_ratio: f64) -> Refined {
+        let mut body = Refined::unsplit(n, weights);
+        let (x, side) = (body.nodes.reference().to_vec(), n as f64 * DX);
+        let parents: Vec<u32> = (0..x.len() as u32)
+            .filter(|&k| x[k as usize][0] > 0.5 * side)
+            .collect();
+        body.split(&parents, horizon_ratio);
+        body
+    }
+
+    /// The n × n lattice before any split.
+    fn unsplit(n: usize, weights: BondWeights) -> Refined {
         let material = material(0.25, Plane::Stress);
         let x = lattice(n);
         let volumes = vec![DX * DX * material.thickness; x.len()];
@@ -162,46 +174,33 @@ impl Refined {
             level: nodes.fields.add("level", 0u8),
             spacing: nodes.fields.add("spacing", DX),
         };
-        let mut buckets = Buckets::new(&x, (M + 1.0) * DX, DX);
-        let mut bonds = {
-            let body = Body {
-                reference: nodes.reference(),
-                volumes: nodes.volumes(),
-                constants: nodes.fields.get(columns.constants),
-                thickness: material.thickness,
-            };
-            DualBonds::build(&body, &buckets, weights)
-        };
-        let side = n as f64 * DX;
-        let parents: Vec<u32> = (0..x.len() as u32)
-            .filter(|&k| x[k as usize][0] > 0.5 * side)
-            .collect();
-        splitting::split(
-            &parents,
-            &mut nodes,
-            &columns,
-            &mut bonds,
-            &mut buckets,
-            &material,
-            horizon_ratio,
-            &[],
-        );
+        let buckets = Buckets::new(&x, (M + 1.0) * DX, DX);
+        let bonds = DualBonds::build(&body_of(&nodes, &columns, &material), &buckets, weights);
         Refined {
             nodes,
             columns,
             bonds,
+            buckets,
             material,
         }
     }
 
+    fn split(&mut self, parents: &[u32], horizon_ratio: f64) {
+        splitting::split(
+            parents,
+            &mut self.nodes,
+            &self.columns,
+            &mut self.bonds,
+            &mut self.buckets,
+            &self.material,
+            horizon_ratio,
+            &[],
+        );
+    }
+
     /// Forces at positions y.
     fn forces(&mut self, y: &[[f64; 2]]) -> Vec<ParticleTerms> {
-        let body = Body {
-            reference: self.nodes.reference(),
-            volumes: self.nodes.volumes(),
-            constants: self.nodes.fields.get(self.columns.constants),
-            thickness: self.material.thickness,
-        };
+        let body = body_of(&self.nodes, &self.columns, &self.material);
         let mut terms = vec![ParticleTerms::default(); y.len()];
         self.bonds.evaluate(&body, y, &mut terms);
         terms
@@ -214,6 +213,157 @@ impl Refined {
         let c: &OsbHorizon = &self.nodes.fields.get(self.columns.constants)[0];
         let v = DX * DX * self.material.thickness;
         2.0 * c.horizon * c.b * 1e-3 * v * v
+    }
+}
+
+fn body_of<'a>(nodes: &'a Nodes<2>, columns: &SplitColumns, material: &OsbMaterial) -> Body<'a> {
+    Body {
+        reference: nodes.reference(),
+        volumes: nodes.volumes(),
+        constants: nodes.fields.get(columns.constants),
+        thickness: material.thickness,
+    }
+}
+
+/// Issue 17, item 3 (families rebuilt locally): a split appends the rows it changes and
+/// renews only the dual lists they reach, compacting now and then. After 24 or more splits of
+/// one parent each (children of earlier splits among them, so three particle sizes meet; two
+/// compactions or more, and rows left behind since the last) the bonds must be those of a global rebuild of the final body: the
+/// same families and dual horizons, the same weights (the same fit of the same rows), and
+/// with the bonds across a line cut and a homogeneous strain, the same forces (to summation
+/// order, 1e-10 of a bond force) and damage (1e-12).
+#[test]
+fn local_row_updates_match_a_global_rebuild() {
+    let n = 16;
+    let mut local = Refined::unsplit(n, BondWeights::Moments);
+    // A walk along the diagonal, then into the children of its first splits, until at least
+    // 24 splits and two compactions are done and rows are left behind again.
+    let (mut splits, mut compactions) = (0u32, 0);
+    while splits < 24 || compactions < 2 || local.bonds.slot_count() == local.bonds.bond_count() {
+        let parent = if splits < 16 {
+            splits * (n as u32 + 1)
+        } else {
+            256 + 3 * (splits - 16)
+        };
+        let before = local.bonds.slot_count();
+        local.split(&[parent], 0.5);
+        compactions += usize::from(local.bonds.slot_count() < before);
+        splits += 1;
+        assert!(splits < 40, "{compactions} compactions in {splits} splits");
+    }
+    let count = local.nodes.len();
+    assert_eq!(count, 256 + 3 * splits as usize);
+    let body = body_of(&local.nodes, &local.columns, &local.material);
+    let buckets = Buckets::new(body.reference, (M + 1.0) * DX, 0.0);
+    let mut global = DualBonds::build(&body, &buckets, BondWeights::Moments);
+    assert_eq!(local.bonds.bond_count(), global.bond_count());
+    let owners = |bonds: &DualBonds, k: usize| -> Vec<u32> {
+        let (offsets, neighbors) = bonds.compact_rows();
+        let mut owners: Vec<u32> = (0..count as u32)
+            .filter(|&i| {
+                neighbors[offsets[i as usize]..offsets[i as usize + 1]].contains(&(k as u32))
+            })
+            .collect();
+        owners.sort_unstable();
+        owners
+    };
+    for k in 0..count {
+        let (a, b) = (local.bonds.range(k), global.range(k));
+        assert_eq!(
+            local.bonds.neighbors[a.clone()],
+            global.neighbors[b.clone()],
+            "family of {k}"
+        );
+        for (wa, wb) in [
+            (&local.bonds.weight_theta, &global.weight_theta),
+            (&local.bonds.weight_distortion, &global.weight_distortion),
+        ] {
+            for (p, q) in wa[a.clone()].iter().zip(&wb[b.clone()]) {
+                assert!(
+                    (p - q).abs() <= 1e-12 * q.abs(),
+                    "weights of {k}: {p} against {q}"
+                );
+            }
+        }
+        let dual_owners = |bonds: &DualBonds| -> Vec<u32> {
+            let mut owners: Vec<u32> = bonds
+                .dual_bonds(k)
+                .iter()
+                .map(|&d| {
+                    // The owner of slot d: the row whose range holds it.
+                    (0..count as u32)
+                        .find(|&i| bonds.range(i as usize).contains(&(d as usize)))
+                        .unwrap()
+                })
+                .collect();
+            owners.sort_unstable();
+            owners
+        };
+        assert_eq!(
+            dual_owners(&local.bonds),
+            owners(&global, k),
+            "dual horizon of {k}"
+        );
+        assert_eq!(
+            dual_owners(&global),
+            owners(&global, k),
+            "dual horizon of {k} (global)"
+        );
+    }
+    // The bonds across y = 8.2 DX cut in both (the material has no s_c), then a small
+    // homogeneous strain.
+    let cut = |bonds: &mut DualBonds| {
+        let x = body.reference;
+        for k in 0..count {
+            for b in bonds.range(k) {
+                let j = bonds.neighbors[b] as usize;
+                if (x[k][1] - 8.2 * DX).signum() != (x[j][1] - 8.2 * DX).signum() {
+                    bonds.intact[b] = 0;
+                }
+            }
+        }
+    };
+    cut(&mut local.bonds);
+    cut(&mut global);
+    // Every particle splittable: the force pass gives the damage from its cached
+    // denominators and the strains of (16).
+    local.bonds.criteria = vec![f64::MIN; count];
+    global.criteria = vec![f64::MIN; count];
+    let y = deform(
+        body.reference,
+        [[1.0 + 1e-4, 2e-5], [2e-5, 1.0 - 3e-5]],
+        [0.0; 2],
+    );
+    let mut from_local = vec![ParticleTerms::default(); count];
+    let mut from_global = vec![ParticleTerms::default(); count];
+    local.bonds.evaluate(&body, &y, &mut from_local);
+    global.evaluate(&body, &y, &mut from_global);
+    // Summation order moves a force by ~1e-15 of a bond force; a missing or doubled bond
+    // by ~1e-1 of one.
+    let scale = local.bond_force_scale();
+    for k in 0..count {
+        for i in 0..2 {
+            let (p, q) = (from_local[k].force[i], from_global[k].force[i]);
+            assert!(
+                (p - q).abs() <= 1e-10 * scale,
+                "force on {k}: {p} against {q}"
+            );
+        }
+    }
+    let (da, db) = (
+        local.bonds.damage(body.volumes),
+        global.damage(body.volumes),
+    );
+    assert!(da.iter().any(|&d| d > 0.1));
+    for k in 0..count {
+        for (what, a, b) in [
+            ("damage", da[k], db[k]),
+            ("force pass's damage", from_local[k].damage, db[k]),
+            ("ε_xx", from_local[k].strains[0], from_global[k].strains[0]),
+            ("ε_yy", from_local[k].strains[1], from_global[k].strains[1]),
+        ] {
+            assert!((a - b).abs() <= 1e-12, "{what} of {k}: {a} against {b}");
+        }
     }
 }
 
