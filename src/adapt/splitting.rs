@@ -108,14 +108,23 @@ pub fn split(
             })
             .collect()
     };
-    // Old particles whose horizon may reach a child: within δ_max + Δ_p/2 of a parent (the
-    // bucket cell is at least that wide).
+    // Old particles whose horizon may reach a child: a child lies √2 Δ_p/4 from its parent, so
+    // particle k can see one only if |x_k − x_p| < δ_k + √2 Δ_p/4 (the bucket cell, at least
+    // δ_max + Δ_p/2 wide, holds every candidate). The parents' own neighbors are among them.
     let mut affected = vec![false; old_count];
     {
         let reference = nodes.reference();
+        let constants = nodes.fields.get(columns.constants);
+        let spacing = nodes.fields.get(columns.spacing);
         for &p in parents {
-            buckets.within(reference, &reference[p as usize], buckets.cell(), |j| {
-                affected[j as usize] = true;
+            let x = reference[p as usize];
+            let offset = std::f64::consts::SQRT_2 * 0.25 * spacing[p as usize];
+            buckets.within(reference, &x, buckets.cell(), |j| {
+                let (k, y) = (j as usize, reference[j as usize]);
+                let reach = constants[k].horizon + offset;
+                if (y[0] - x[0]).powi(2) + (y[1] - x[1]).powi(2) < reach * reach {
+                    affected[k] = true;
+                }
             });
         }
     }

@@ -83,9 +83,8 @@ pub struct DualBonds {
     /// Bonds j → k of each particle k: `dual[dual_starts[k]..dual_ends[k]]`.
     dual_starts: Vec<usize>,
     dual_ends: Vec<usize>,
+    /// Every live bond's slot once; the rest (up to its length) lies in no particle's list.
     dual: Vec<u32>,
-    /// Entries of `dual` in no particle's list.
-    dual_dead: usize,
     /// Particles whose moment fit fell back to scalar factors.
     pub fallbacks: usize,
     /// Per particle, the energy density from which the force pass also gives its strains
@@ -255,36 +254,48 @@ impl DualBonds {
             self.intact[r].copy_from_slice(&row.states);
         }
         // The touched particles' dual lists: their old bonds still in a row, then the new
-        // bonds that reach them, in slot order.
+        // bonds that reach them, in slot order; in place where the list was when they fit
+        // (a replaced row's bond to j usually dies and returns), else moved to the end.
         let mut arriving: Vec<(u32, u32)> = (first_new..total)
             .map(|b| (self.neighbors[b], b as u32))
             .collect();
         arriving.sort_unstable();
         let mut next = 0;
         for j in (0..n).filter(|&j| touched[j]) {
-            let start = self.dual.len();
-            let old = self.dual_starts[j]..self.dual_ends[j];
-            self.dual_dead += old.len();
-            for d in old {
-                let b = self.dual[d];
-                if self.owner[b as usize] != DEAD {
-                    self.dual.push(b);
-                }
-            }
             while next < arriving.len() && (arriving[next].0 as usize) < j {
                 next += 1;
             }
+            let from = next;
             while next < arriving.len() && arriving[next].0 as usize == j {
-                self.dual.push(arriving[next].1);
                 next += 1;
             }
-            self.dual_starts[j] = start;
-            self.dual_ends[j] = self.dual.len();
+            let new_bonds = &arriving[from..next];
+            let (start, end) = (self.dual_starts[j], self.dual_ends[j]);
+            let mut kept = start;
+            for d in start..end {
+                let b = self.dual[d];
+                if self.owner[b as usize] != DEAD {
+                    self.dual[kept] = b;
+                    kept += 1;
+                }
+            }
+            if kept + new_bonds.len() <= end {
+                for (slot, &(_, b)) in self.dual[kept..].iter_mut().zip(new_bonds) {
+                    *slot = b;
+                }
+                self.dual_ends[j] = kept + new_bonds.len();
+            } else {
+                let at = self.dual.len();
+                self.dual.extend_from_within(start..kept);
+                self.dual.extend(new_bonds.iter().map(|&(_, b)| b));
+                (self.dual_starts[j], self.dual_ends[j]) = (at, self.dual.len());
+            }
         }
         for j in (0..n).filter(|&j| touched[j]) {
             self.row_volume[j] = self.row_volume_of(j, body.volumes);
         }
-        if 2 * self.dead > self.bond_count() || 2 * self.dual_dead > self.bond_count() {
+        let dual_dead = self.dual.len() - self.bond_count();
+        if 2 * self.dead > self.bond_count() || 2 * dual_dead > self.bond_count() {
             self.compact();
         }
     }
@@ -426,7 +437,6 @@ impl DualBonds {
         self.dual_starts = counts[..n].to_vec();
         self.dual_ends = counts[1..].to_vec();
         self.dual = dual;
-        self.dual_dead = 0;
     }
 
     /// Refits every particle's weights over its bonds intact now: a pre-crack cut before the
