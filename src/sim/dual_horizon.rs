@@ -144,6 +144,9 @@ pub struct DualHorizonSimulation {
     /// Splitting passes and particles split so far; events since the last frame.
     pub splits: u64,
     pub split_parents: u64,
+    /// The parents of every split since the scene was built, in order: a checkpoint replays
+    /// them to rebuild the same particles and bond layout.
+    split_log: Vec<Vec<u32>>,
     events: Vec<String>,
     velocity_scale: f64,
     /// Whether (16)'s strains are skipped below the energy gate (`gate_strains`).
@@ -291,6 +294,7 @@ impl DualHorizonSimulation {
             broken: 0,
             splits: splits.0,
             split_parents: splits.1,
+            split_log: Vec::new(),
             events: Vec::new(),
             velocity_scale: 1.0,
             strain_gate: true,
@@ -344,6 +348,10 @@ impl DualHorizonSimulation {
 
     pub fn velocities_mut(&mut self) -> &mut [[f64; 2]] {
         self.nodes.fields.get_mut(self.columns.velocity)
+    }
+
+    pub fn accelerations(&self) -> &[[f64; 2]] {
+        self.nodes.fields.get(self.columns.acceleration)
     }
 
     pub fn levels(&self) -> &[u8] {
@@ -465,26 +473,11 @@ impl DualHorizonSimulation {
         let Some(rule) = self.spec.refinement else {
             return 0;
         };
-        let material = self.spec.material;
         let parents = candidates(&rule, &self.nodes, &self.columns, &self.bonds, false);
         if parents.is_empty() {
             return 0;
         }
-        splitting::split(
-            &parents,
-            &mut self.nodes,
-            &self.columns.split,
-            &mut self.bonds,
-            &mut self.buckets,
-            &material,
-            rule.horizon_ratio,
-            &self.scene.precracks,
-        );
-        self.held = held_list(&self.nodes, &self.columns);
-        self.smallest_spacing = self.smallest();
-        self.mark_splittable();
-        self.splits += 1;
-        self.split_parents += parents.len() as u64;
+        self.split_particles(&parents, rule.horizon_ratio);
         self.events.push(format!(
             "split {} particles at t = {:.4e} s ({} particles now)",
             parents.len(),
@@ -492,6 +485,96 @@ impl DualHorizonSimulation {
             self.nodes.len()
         ));
         parents.len()
+    }
+
+    /// Replays a checkpoint's split log on this freshly built scene.
+    fn replay_splits(&mut self, state: &State) -> Result<(), String> {
+        let field = "dual_horizon/split_log";
+        let Some(rule) = self.spec.refinement else {
+            return Err(format!(
+                "the checkpoint's `{field}` lists splits, but this scene has no refinement"
+            ));
+        };
+        if !self.split_log.is_empty() {
+            return Err("splits can be replayed on a freshly built scene only".into());
+        }
+        let len = state.u64("dual_horizon/split_log_len", 1)?[0] as usize;
+        let log = state.u64(field, len)?;
+        let mut at = 0;
+        while at < log.len() {
+            let count = log[at] as usize;
+            let Some(parents) = log.get(at + 1..at + 1 + count) else {
+                return Err(format!("`{field}` ends inside a split of {count} parents"));
+            };
+            let n = self.len() as u64;
+            let mut parents: Vec<u32> = parents.iter().map(|&k| k.min(n) as u32).collect();
+            let listed = parents.len();
+            parents.sort_unstable();
+            parents.dedup();
+            let levels = self.nodes.fields.get(self.columns.split.level);
+            if parents.len() != listed
+                || parents
+                    .iter()
+                    .any(|&k| u64::from(k) >= n || levels[k as usize] >= rule.levels)
+            {
+                return Err(format!(
+                    "`{field}` names a particle twice, one beyond the {n} particles, or one at \
+                     the level cap {}",
+                    rule.levels
+                ));
+            }
+            let ordered: Vec<u32> = log[at + 1..at + 1 + count]
+                .iter()
+                .map(|&k| k as u32)
+                .collect();
+            self.split_particles(&ordered, rule.horizon_ratio);
+            at += 1 + count;
+        }
+        Ok(())
+    }
+
+    /// Splits `parents` and brings what depends on the particle set up to date: the held
+    /// components, the smallest cell, the split criteria and ADR's density (the new rows'
+    /// from the measured scale: no new power iteration, the row sums keep the shape, so
+    /// λ_max(D⁻¹K) stays; never below 1, the bound of exact absolute row sums).
+    fn split_particles(&mut self, parents: &[u32], horizon_ratio: f64) {
+        let material = self.spec.material;
+        splitting::split(
+            parents,
+            &mut self.nodes,
+            &self.columns.split,
+            &mut self.bonds,
+            &mut self.buckets,
+            &material,
+            horizon_ratio,
+            &self.scene.precracks,
+        );
+        self.held = held_list(&self.nodes, &self.columns);
+        self.smallest_spacing = self.smallest();
+        self.mark_splittable();
+        self.splits += 1;
+        self.split_parents += parents.len() as u64;
+        self.split_log.push(parents.to_vec());
+        if matches!(self.motion, Motion::Relaxation { .. }) {
+            let diagonal = self
+                .bonds
+                .stiffness_rows(&body(&self.nodes, &self.columns, &material));
+            let n = self.nodes.len();
+            if let Motion::Relaxation {
+                relaxation,
+                force,
+                external,
+                ..
+            } = &mut self.motion
+            {
+                *relaxation = Relaxation::new(
+                    adr::scale_density(&diagonal, relaxation.lambda.max(1.0)),
+                    relaxation.lambda,
+                );
+                force.resize(n, [0.0; 2]);
+                external.resize(n, [0.0; 2]);
+            }
+        }
     }
 
     fn step_verlet(&mut self) -> Result<(), SimError> {
@@ -595,28 +678,6 @@ impl DualHorizonSimulation {
         self.update_forces();
         lap.charge(&mut self.run.stages, FORCES);
         if self.refine() > 0 {
-            // The new rows' density from the measured scale (no new power iteration: the row
-            // sums keep the shape, so λ_max(D⁻¹K) stays; never below 1, the bound of exact
-            // absolute row sums).
-            let material = self.spec.material;
-            let diagonal = self
-                .bonds
-                .stiffness_rows(&body(&self.nodes, &self.columns, &material));
-            let n = self.nodes.len();
-            if let Motion::Relaxation {
-                relaxation,
-                force,
-                external,
-                ..
-            } = &mut self.motion
-            {
-                *relaxation = Relaxation::new(
-                    adr::scale_density(&diagonal, relaxation.lambda.max(1.0)),
-                    relaxation.lambda,
-                );
-                force.resize(n, [0.0; 2]);
-                external.resize(n, [0.0; 2]);
-            }
             self.update_forces();
         }
         lap.charge(&mut self.run.stages, REFINE);
@@ -1010,18 +1071,50 @@ impl Stepper for DualHorizonSimulation {
         state.put_f64("velocity", self.velocities().as_flattened().to_vec());
         state.put_u8("intact", self.bonds.intact.clone());
         state.put_u64("broken", vec![self.broken, self.splits, self.split_parents]);
+        // Every split as its parent count then its parents.
+        let log: Vec<u64> = self
+            .split_log
+            .iter()
+            .flat_map(|p| std::iter::once(p.len() as u64).chain(p.iter().map(|&k| u64::from(k))))
+            .collect();
+        state.put_u64("dual_horizon/split_log_len", vec![log.len() as u64]);
+        state.put_u64("dual_horizon/split_log", log);
+        // The step's own accelerations and force-pass terms: a split at the checkpoint's step
+        // left its children with their parent's, which a new force pass would not give.
+        state.put_f64("acceleration", self.accelerations().as_flattened().to_vec());
+        let terms: Vec<f64> = self
+            .terms()
+            .iter()
+            .flat_map(|t| {
+                [
+                    t.force[0],
+                    t.force[1],
+                    t.dilatation,
+                    t.energy_density,
+                    t.damage,
+                    t.strains[0],
+                    t.strains[1],
+                ]
+            })
+            .collect();
+        state.put_f64("dual_horizon/terms", terms);
         state
     }
 
-    /// Restores a state of the same particle set (a run that has not split since the scene
-    /// was built); a refined run's checkpoint is refused with the reason.
+    /// Restores a state of this scene: the splits since the start are replayed from the
+    /// checkpoint's log (the same parents in the same order give the same particles and
+    /// bond layout; positions, velocities, bond states and force-pass results then come
+    /// from the checkpoint), so the resumed run continues bit for bit.
     fn restore_state(&mut self, state: &State) -> Result<(), String> {
-        let n = self.len();
         let saved = state.u64("dual_horizon/particles", 1)?[0] as usize;
+        if saved != self.len() && state.has("dual_horizon/split_log") {
+            self.replay_splits(state)?;
+        }
+        let n = self.len();
         if saved != n {
             return Err(format!(
-                "the checkpoint holds {saved} particles, this scene {n}: restoring a run whose \
-                 particles split after the start is not supported yet"
+                "the checkpoint holds {saved} particles, this scene {n} after replaying its \
+                 splits: it belongs to another scene or another version"
             ));
         }
         let clock = Clock::restore(state)?;
@@ -1038,7 +1131,32 @@ impl Stepper for DualHorizonSimulation {
         self.bonds.intact.copy_from_slice(intact);
         (self.broken, self.splits, self.split_parents) = (counters[0], counters[1], counters[2]);
         self.run.clock = clock;
-        self.update_forces();
+        if state.has("dual_horizon/terms") {
+            let acceleration = state.f64("acceleration", 2 * n)?;
+            let terms = state.f64("dual_horizon/terms", 7 * n)?;
+            let c = self.columns;
+            let fields = &mut self.nodes.fields;
+            fields
+                .get_mut(c.acceleration)
+                .as_flattened_mut()
+                .copy_from_slice(acceleration);
+            for (t, v) in fields
+                .get_mut(c.terms)
+                .iter_mut()
+                .zip(terms.chunks_exact(7))
+            {
+                *t = ParticleTerms {
+                    force: [v[0], v[1]],
+                    dilatation: v[2],
+                    energy_density: v[3],
+                    damage: v[4],
+                    strains: [v[5], v[6]],
+                };
+            }
+        } else {
+            // A checkpoint without them (an earlier version, no split since the start).
+            self.update_forces();
+        }
         Ok(())
     }
 

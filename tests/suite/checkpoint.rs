@@ -3,6 +3,7 @@
 //! and χ, corrosion on one grid and on two); damaged, foreign or truncated files are refused with exit code 2; a run
 //! killed while writing checkpoints leaves one that resumes.
 
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -32,7 +33,13 @@ fn final_hashes(stdout: &str) -> String {
 
 /// Records `preset`/`variant` whole, then again writing checkpoints every `every` steps, and
 /// resumes from the last checkpoint: the resumed run ends on the same fields, bit for bit.
-fn resumes_bit_for_bit(preset: &str, variant: &str, every: u64, script: Option<&str>) {
+/// Returns the node counts per frame of the whole recording and of the resumed one.
+fn resumes_bit_for_bit(
+    preset: &str,
+    variant: &str,
+    every: u64,
+    script: Option<&str>,
+) -> (BTreeMap<i64, usize>, BTreeMap<i64, usize>) {
     let name = format!("{preset}-{variant}");
     let mut common = vec!["record", preset, "--variant", variant, "-q"];
     let script_path = temp(&format!("{name}.script"));
@@ -77,16 +84,23 @@ fn resumes_bit_for_bit(preset: &str, variant: &str, every: u64, script: Option<&
         "{name}: resumed ≠ uninterrupted"
     );
     // The resumed recording starts at the checkpoint's step, not at 0.
-    let recordings = readback::read_each(&resumed).unwrap();
+    let counts = node_counts(&resumed);
+    let start = *counts.keys().next().unwrap();
+    assert!(start > 0, "{name}: resumed at step {start}");
+    (node_counts(&whole), counts)
+}
+
+/// Points per frame of the first `/nodes/` entity with points, in the recording's first run.
+fn node_counts(path: &std::path::Path) -> BTreeMap<i64, usize> {
+    let recordings = readback::read_each(path).unwrap();
     let (_, first_run) = &recordings[0];
-    let start = first_run
+    first_run
         .entities
         .iter()
         .filter(|(n, _)| n.starts_with("/nodes/"))
-        .filter_map(|(_, e)| e.points.keys().next().copied())
-        .min()
-        .unwrap();
-    assert!(start > 0, "{name}: resumed at step {start}");
+        .map(|(_, e)| e.points.clone())
+        .find(|points| !points.is_empty())
+        .unwrap()
 }
 
 #[test]
@@ -106,6 +120,23 @@ fn an_adaptive_hybrid_run_with_a_script_resumes_bit_for_bit() {
             "at 60 steps set dt 0.35 stable\nat 150 steps set chi 0.9\nat 200 steps set every 7\n\
              at 1210 steps set dt 0.3 stable\n",
         ),
+    );
+}
+
+/// Issue 17: a dual-horizon run whose particles split before its last checkpoint (and after
+/// it) resumes bit for bit: the checkpoint replays its splits on the fresh scene.
+#[test]
+fn a_splitting_dual_horizon_run_resumes_bit_for_bit() {
+    // Checkpoints at steps 1 100 and 2 200 of 3 000.
+    let (whole, resumed) = resumes_bit_for_bit("branching", "small", 1100, None);
+    let (initial, at_checkpoint, last) = (
+        *whole.values().next().unwrap(),
+        *resumed.values().next().unwrap(),
+        *resumed.values().last().unwrap(),
+    );
+    assert!(
+        initial < at_checkpoint && at_checkpoint < last,
+        "splits before and after the checkpoint: {initial} → {at_checkpoint} → {last}"
     );
 }
 
