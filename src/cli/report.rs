@@ -140,6 +140,12 @@ pub fn print_summary(s: &RunSummary) {
              fictitious nodes"
         );
     }
+    if let Some(r) = last("adr/residual") {
+        println!(
+            "dynamic relaxation: residual ‖F‖/‖F_ext‖ {r:.3e} after {} iterations",
+            s.steps
+        );
+    }
     if let Some(f) = &s.last_frame {
         for key in ["energy/kinetic", "energy/strain", "energy/total"] {
             if let Some(v) = f.scalar(key) {

@@ -202,8 +202,9 @@ impl Driver {
         self.sim.time()
     }
 
+    /// At the step cap, or an iterative solve (dynamic relaxation) has met its tolerance.
     pub fn done(&self) -> bool {
-        self.sim.steps_done() >= self.total_steps()
+        self.sim.steps_done() >= self.total_steps() || self.sim.converged()
     }
 
     /// Whether the simulation should advance now (playing, or single steps pending).
@@ -221,11 +222,15 @@ impl Driver {
         if self.pending > 0 {
             self.pending -= 1;
         }
-        if n.is_multiple_of(self.state.every) || n == self.total_steps() {
+        let converged = self.sim.converged();
+        if n.is_multiple_of(self.state.every) || n == self.total_steps() || converged {
             self.emit();
         } else {
             self.state.metrics.step = n;
             self.state.metrics.time = self.sim.time();
+        }
+        if converged {
+            self.message("info", &format!("converged after {n} iterations"));
         }
         Ok(())
     }
@@ -242,7 +247,7 @@ impl Driver {
         };
         self.rate_mark = (Instant::now(), frame.step);
         self.state.observe(&frame, self.total_steps(), rate);
-        if frame.step == self.total_steps() {
+        if frame.step == self.total_steps() || self.sim.converged() {
             self.last_frame = Some(frame.clone());
         }
         if let Some(vtu) = &mut self.vtu {

@@ -503,19 +503,28 @@ impl DualHorizonSimulation {
         let mut at = 0;
         while at < log.len() {
             let count = log[at] as usize;
-            let Some(parents) = log.get(at + 1..at + 1 + count) else {
-                return Err(format!("`{field}` ends inside a split of {count} parents"));
+            let end = (at + 1)
+                .checked_add(count)
+                .filter(|&e| count > 0 && e <= log.len());
+            let Some(end) = end else {
+                return Err(format!(
+                    "`{field}` holds a split of {count} parents where {} values are left",
+                    log.len() - at - 1
+                ));
             };
-            let n = self.len() as u64;
-            let mut parents: Vec<u32> = parents.iter().map(|&k| k.min(n) as u32).collect();
-            let listed = parents.len();
-            parents.sort_unstable();
-            parents.dedup();
+            let n = self.len();
+            let parents: Vec<u32> = log[at + 1..end]
+                .iter()
+                .map(|&k| u32::try_from(k).unwrap_or(u32::MAX))
+                .collect();
+            let mut distinct = parents.clone();
+            distinct.sort_unstable();
+            distinct.dedup();
             let levels = self.nodes.fields.get(self.columns.split.level);
-            if parents.len() != listed
-                || parents
+            if distinct.len() != count
+                || distinct
                     .iter()
-                    .any(|&k| u64::from(k) >= n || levels[k as usize] >= rule.levels)
+                    .any(|&k| k as usize >= n || levels[k as usize] >= rule.levels)
             {
                 return Err(format!(
                     "`{field}` names a particle twice, one beyond the {n} particles, or one at \
@@ -523,12 +532,8 @@ impl DualHorizonSimulation {
                     rule.levels
                 ));
             }
-            let ordered: Vec<u32> = log[at + 1..at + 1 + count]
-                .iter()
-                .map(|&k| k as u32)
-                .collect();
-            self.split_particles(&ordered, rule.horizon_ratio);
-            at += 1 + count;
+            self.split_particles(&parents, rule.horizon_ratio);
+            at = end;
         }
         Ok(())
     }

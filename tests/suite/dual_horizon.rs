@@ -714,6 +714,35 @@ fn splits_conserve_mass_and_momentum_on_a_free_body() {
     );
 }
 
+/// A relaxation run from the command line stops where ADR meets its tolerance (the step count
+/// is only a cap) and says so; its last frame's residual is below the tolerance (1e-6).
+#[test]
+fn a_recorded_relaxation_stops_when_it_converges() {
+    let out = crate::common::temp("dual_horizon", "relaxation.rrd");
+    let output = crate::common::peridyn(&[
+        "record",
+        "crack-opening",
+        "--variant",
+        "small",
+        "--set",
+        "refinement.enabled=false",
+        "-q",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{stdout}");
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("dynamic relaxation: residual"))
+        .unwrap_or_else(|| panic!("no residual line in {stdout}"));
+    let words: Vec<&str> = line.split_whitespace().collect();
+    let residual: f64 = words[4].parse().unwrap();
+    let iterations: u64 = words[6].parse().unwrap();
+    assert!(residual < 1e-6, "{line}");
+    assert!(iterations < 40_000, "stopped at the step cap: {line}");
+}
+
 /// zeng2024 Sect. 4.1 on the `small` plate (50 × 100 mm, a/L = 0.5, coarse): ADR converges to
 /// its stated residual and the mouth opening lies within the paper's coarse-grid error band
 /// (its Table 2: 1.55–4.21 %, here bounded by 5 %) of Tada's formula.
