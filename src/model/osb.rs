@@ -96,19 +96,19 @@ impl OsbHorizon {
     /// The scalar of the bond force (zeng2024 (3)–(5), seed-002 §1 "explicit bond force"):
     /// t_kj = 2δ (a d Λ θ ω_θ / |ξ| + b s ω_b) per unit of V_k, along the deformed bond.
     /// `weight_theta`, `weight_distortion` are the bond's quadrature weights (V_j, or the
-    /// moment-matched weights of `scheme::dual_horizon`).
+    /// moment-matched weights of `scheme::dual_horizon`); `inverse_length` is 1/|ξ|.
     #[inline(always)]
     pub fn bond_scalar(
         &self,
         dilatation: f64,
         cosine: f64,
         stretch: f64,
-        length: f64,
+        inverse_length: f64,
         weight_theta: f64,
         weight_distortion: f64,
     ) -> f64 {
         2.0 * self.horizon
-            * (self.a * self.d * cosine * dilatation * weight_theta / length
+            * (self.a * self.d * cosine * dilatation * weight_theta * inverse_length
                 + self.b * stretch * weight_distortion)
     }
 

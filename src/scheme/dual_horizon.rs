@@ -53,6 +53,43 @@ pub struct ParticleTerms {
     pub strains: [f64; 2],
 }
 
+/// A bond column written from a particle-parallel pass: each task reads and writes the slots
+/// of the row it visits. Sound because rows are disjoint slot ranges (`DualBonds`' invariant,
+/// checked by `DualBonds::rows_are_disjoint` in the tests; dead slots lie in no row) and every
+/// row is visited by one task only.
+struct RowSlots<T> {
+    column: *mut T,
+    len: usize,
+}
+
+// SAFETY: tasks touch disjoint slots (see the type's documentation).
+unsafe impl<T: Send> Sync for RowSlots<T> {}
+
+impl<T: Copy> RowSlots<T> {
+    fn new(column: &mut [T]) -> RowSlots<T> {
+        RowSlots {
+            column: column.as_mut_ptr(),
+            len: column.len(),
+        }
+    }
+
+    /// # Safety
+    /// Slot `b` lies in the row the calling task visits.
+    #[inline(always)]
+    unsafe fn read(&self, b: usize) -> T {
+        assert!(b < self.len);
+        unsafe { self.column.add(b).read() }
+    }
+
+    /// # Safety
+    /// Slot `b` lies in the row the calling task visits.
+    #[inline(always)]
+    unsafe fn write(&self, b: usize, value: T) {
+        assert!(b < self.len);
+        unsafe { self.column.add(b).write(value) }
+    }
+}
+
 /// Marks a bond slot that belongs to no row (a row replaced by a split left it behind).
 const DEAD: u32 = u32::MAX;
 
@@ -94,9 +131,12 @@ pub struct DualBonds {
     pub criteria: Vec<f64>,
     /// Per particle, Σ_{H_k} V_j + Σ_{H'_k} V_j: the denominator of the damage (14).
     row_volume: Vec<f64>,
-    stretch: Vec<f64>,
-    cosine: Vec<f64>,
-    bond_force: Vec<[f64; 2]>,
+    /// Per slot, where its reaction goes in `reactions`: its entry in the dual list of its
+    /// neighbor.
+    reaction_slot: Vec<u32>,
+    /// F_kj of each bond in dual-list order, written by the force pass at `reaction_slot` so
+    /// the reactions' pass reads them in sequence; zero for broken bonds.
+    reactions: Vec<[f64; 2]>,
 }
 
 /// A particle's new family after a split.
@@ -116,6 +156,26 @@ fn bond_length(reference: &[[f64; 2]], k: usize, j: usize) -> f64 {
     let (x, y) = (reference[k], reference[j]);
     let xi = [y[0] - x[0], y[1] - x[1]];
     (xi[0] * xi[0] + xi[1] * xi[1]).sqrt()
+}
+
+/// Bond k → j's deformed vector η, 1/|η|, stretch, cosine and 1/|ξ| (|ξ| = `l0`), with one
+/// division: the force pass evaluates every bond twice per step.
+#[inline(always)]
+fn bond_kinematics(
+    x: &[[f64; 2]],
+    y: &[[f64; 2]],
+    l0: f64,
+    k: usize,
+    j: usize,
+) -> ([f64; 2], f64, f64, f64, f64) {
+    let xi = [x[j][0] - x[k][0], x[j][1] - x[k][1]];
+    let eta = [y[j][0] - y[k][0], y[j][1] - y[k][1]];
+    let l = (eta[0] * eta[0] + eta[1] * eta[1]).sqrt();
+    let inverse = 1.0 / (l * l0);
+    let (inverse_l, inverse_l0) = (l0 * inverse, l * inverse);
+    let stretch = (l - l0) * inverse_l0;
+    let cosine = (xi[0] * eta[0] + xi[1] * eta[1]) * inverse;
+    (eta, inverse_l, stretch, cosine, inverse_l0)
 }
 
 /// The family of particle k among `candidates`: j ≠ k with |x_j − x_k| < δ_k, sorted.
@@ -170,6 +230,19 @@ impl DualBonds {
     }
 
     /// Particle k's bond slots.
+    /// Verification: every row lies inside the slot arrays and no two rows share a slot (the
+    /// invariant the particle-parallel force pass writes by).
+    pub fn rows_are_disjoint(&self) -> bool {
+        let mut rows: Vec<(usize, usize)> = (0..self.particle_count())
+            .map(|k| (self.starts[k], self.ends[k]))
+            .filter(|(start, end)| start < end)
+            .collect();
+        rows.sort_unstable();
+        rows.iter()
+            .all(|&(start, end)| end <= self.neighbors.len() && start < end)
+            && rows.windows(2).all(|w| w[0].1 <= w[1].0)
+    }
+
     pub fn range(&self, k: usize) -> std::ops::Range<usize> {
         self.starts[k]..self.ends[k]
     }
@@ -238,15 +311,10 @@ impl DualBonds {
             }
         }
         let total = self.neighbors.len();
-        for column in [
-            &mut self.weight_theta,
-            &mut self.weight_distortion,
-            &mut self.stretch,
-            &mut self.cosine,
-        ] {
+        for column in [&mut self.weight_theta, &mut self.weight_distortion] {
             column.resize(total, 0.0);
         }
-        self.bond_force.resize(total, [0.0; 2]);
+        self.reaction_slot.resize(total, 0);
         let replaced: Vec<usize> = rows.iter().map(|r| r.particle as usize).collect();
         self.fallbacks += self.fit_rows(body, &replaced);
         for row in rows {
@@ -291,8 +359,10 @@ impl DualBonds {
                 (self.dual_starts[j], self.dual_ends[j]) = (at, self.dual.len());
             }
         }
+        self.reactions.resize(self.dual.len(), [0.0; 2]);
         for j in (0..n).filter(|&j| touched[j]) {
             self.row_volume[j] = self.row_volume_of(j, body.volumes);
+            self.place_reactions(j);
         }
         let dual_dead = self.dual.len() - self.bond_count();
         if 2 * self.dead > self.bond_count() || 2 * dual_dead > self.bond_count() {
@@ -314,10 +384,6 @@ impl DualBonds {
         gather(&mut self.lengths, &order);
         gather(&mut self.weight_theta, &order);
         gather(&mut self.weight_distortion, &order);
-        let total = order.len();
-        self.stretch = vec![0.0; total];
-        self.cosine = vec![0.0; total];
-        self.bond_force = vec![[0.0; 2]; total];
         let mut at = 0;
         for k in 0..n {
             let len = self.ends[k] - self.starts[k];
@@ -377,9 +443,6 @@ impl DualBonds {
         let all: Vec<usize> = (0..n).collect();
         self.fallbacks = self.fit_rows(body, &all);
         self.intact = states.concat();
-        self.stretch = vec![0.0; total];
-        self.cosine = vec![0.0; total];
-        self.bond_force = vec![[0.0; 2]; total];
         self.rebuild_dual(n);
         self.row_volume = (0..n)
             .map(|k| self.row_volume_of(k, body.volumes))
@@ -437,6 +500,20 @@ impl DualBonds {
         self.dual_starts = counts[..n].to_vec();
         self.dual_ends = counts[1..].to_vec();
         self.dual = dual;
+        self.reactions = vec![[0.0; 2]; self.dual.len()];
+        self.reaction_slot = vec![0; self.neighbors.len()];
+        for k in 0..n {
+            self.place_reactions(k);
+        }
+    }
+
+    /// Points the bonds of particle k's dual list at their entries and clears the entries
+    /// (a broken bond's reaction stays zero: the force pass skips it).
+    fn place_reactions(&mut self, k: usize) {
+        for d in self.dual_starts[k]..self.dual_ends[k] {
+            self.reaction_slot[self.dual[d] as usize] = d as u32;
+            self.reactions[d] = [0.0; 2];
+        }
     }
 
     /// Refits every particle's weights over its bonds intact now: a pre-crack cut before the
@@ -530,116 +607,119 @@ impl DualBonds {
         )
     }
 
-    /// The force pass (zeng2024 (9)–(13)): breaks every intact bond whose stretch reaches its
-    /// owner's s_c (irreversible), then θ over H_k, then each directed bond's force F_kj, then
-    /// per particle Σ_{H_k} F_kj − Σ_{H'_k} F_jk and W_k. Returns the bonds broken now.
-    /// Allocation-free.
+    /// The force pass (zeng2024 (9)–(13)), in two particle-parallel passes. First, per
+    /// particle k over its row H_k: break every intact bond whose stretch reaches k's s_c
+    /// (irreversible), sum θ_k (5) over the intact ones, then (the row still in cache) each
+    /// bond's force F_kj, which depends on k's state only, stored for the reactions; Σ_{H_k} F_kj
+    /// and W_k (4). Second, per particle, the reactions −Σ_{H'_k} F_jk and the split criteria.
+    /// Stretch and cosine are recomputed in the second loop over the row rather than stored,
+    /// so a bond costs about 50 bytes of memory traffic per step instead of 170 (the pass is
+    /// memory-bound). Returns the bonds broken now. Allocation-free.
     pub fn evaluate(
         &mut self,
         body: &Body,
         positions: &[[f64; 2]],
         out: &mut [ParticleTerms],
     ) -> u64 {
-        let (owner, neighbors, lengths) = (&self.owner, &self.neighbors, &self.lengths);
-        let broken: u64 = self
-            .stretch
+        let (starts, ends, neighbors, lengths) =
+            (&self.starts, &self.ends, &self.neighbors, &self.lengths);
+        let (weight_theta, weight_distortion) = (&self.weight_theta, &self.weight_distortion);
+        let criteria = &self.criteria;
+        let intact = RowSlots::new(&mut self.intact);
+        let reaction_slot = &self.reaction_slot;
+        // SAFETY of its writes: each live slot's entry belongs to that slot alone.
+        let reactions = RowSlots::new(&mut self.reactions);
+        let (x, y) = (body.reference, positions);
+        let kinematics = |k: usize, j: usize, b: usize| bond_kinematics(x, y, lengths[b], k, j);
+        let broken: u64 = out
             .par_iter_mut()
-            .zip(self.cosine.par_iter_mut())
-            .zip(self.intact.par_iter_mut())
             .enumerate()
-            .map(|(b, ((s, c), mu))| {
-                if owner[b] == DEAD {
-                    return 0;
+            .map(|(k, t)| {
+                let c = &body.constants[k];
+                let row = starts[k]..ends[k];
+                let mut broken = 0;
+                let mut theta = 0.0;
+                for b in row.clone() {
+                    // SAFETY (both columns): slot b lies in row k alone (rows are disjoint,
+                    // `RowSlots`), and this task is the only one visiting row k.
+                    if unsafe { intact.read(b) } == 0 {
+                        continue;
+                    }
+                    let (_, _, stretch, cosine, _) = kinematics(k, neighbors[b] as usize, b);
+                    if stretch >= c.critical_stretch {
+                        unsafe { intact.write(b, 0) };
+                        unsafe { reactions.write(reaction_slot[b] as usize, [0.0; 2]) };
+                        broken += 1;
+                    } else {
+                        theta += c.dilatation_term(cosine, stretch, weight_theta[b]);
+                    }
                 }
-                let (k, j) = (owner[b] as usize, neighbors[b] as usize);
-                let (x, y) = (body.reference, positions);
-                let xi = [x[j][0] - x[k][0], x[j][1] - x[k][1]];
-                let eta = [y[j][0] - y[k][0], y[j][1] - y[k][1]];
-                let l0 = lengths[b];
-                let l = (eta[0] * eta[0] + eta[1] * eta[1]).sqrt();
-                *s = (l - l0) / l0;
-                *c = (xi[0] * eta[0] + xi[1] * eta[1]) / (l0 * l);
-                if *mu != 0 && *s >= body.constants[k].critical_stretch {
-                    *mu = 0;
-                    1
-                } else {
-                    0
+                let gated = criteria.get(k).is_some_and(|g| g.is_finite());
+                let (mut force, mut distortion, mut lost) = ([0.0; 2], 0.0, 0.0);
+                for b in row {
+                    let j = neighbors[b] as usize;
+                    if unsafe { intact.read(b) } == 0 {
+                        if gated {
+                            lost += body.volumes[j];
+                        }
+                        continue;
+                    }
+                    let (eta, inverse_l, stretch, cosine, inverse_l0) = kinematics(k, j, b);
+                    let scalar = c.bond_scalar(
+                        theta,
+                        cosine,
+                        stretch,
+                        inverse_l0,
+                        weight_theta[b],
+                        weight_distortion[b],
+                    ) * body.volumes[k]
+                        * inverse_l;
+                    let f = [scalar * eta[0], scalar * eta[1]];
+                    unsafe { reactions.write(reaction_slot[b] as usize, f) };
+                    force[0] += f[0];
+                    force[1] += f[1];
+                    distortion += c.distortion_energy(stretch, lengths[b], weight_distortion[b]);
                 }
+                t.dilatation = theta;
+                t.force = force;
+                t.energy_density = c.a * theta * theta + distortion;
+                // The row's part of the lost volume (15), finished by the reactions' pass.
+                t.damage = lost;
+                broken
             })
             .sum();
-        let (starts, ends, intact) = (&self.starts, &self.ends, &self.intact);
-        let (stretch, cosine) = (&self.stretch, &self.cosine);
-        let weight_theta = &self.weight_theta;
-        out.par_iter_mut().enumerate().for_each(|(k, t)| {
-            let c = &body.constants[k];
-            let mut theta = 0.0;
-            for b in starts[k]..ends[k] {
-                if intact[b] != 0 {
-                    theta += c.dilatation_term(cosine[b], stretch[b], weight_theta[b]);
-                }
-            }
-            t.dilatation = theta;
-        });
-        let terms: &[ParticleTerms] = out;
-        let weight_distortion = &self.weight_distortion;
-        self.bond_force
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(b, f)| {
-                if intact[b] == 0 {
-                    *f = [0.0; 2];
-                    return;
-                }
-                let (k, j) = (owner[b] as usize, neighbors[b] as usize);
-                let y = positions;
-                let eta = [y[j][0] - y[k][0], y[j][1] - y[k][1]];
-                let l = (eta[0] * eta[0] + eta[1] * eta[1]).sqrt();
-                let l0 = lengths[b];
-                let scalar = body.constants[k].bond_scalar(
-                    terms[k].dilatation,
-                    cosine[b],
-                    stretch[b],
-                    l0,
-                    weight_theta[b],
-                    weight_distortion[b],
-                ) * body.volumes[k]
-                    / l;
-                *f = [scalar * eta[0], scalar * eta[1]];
-            });
-        let bond_force = &self.bond_force;
+        let (reactions, intact, owner) = (&self.reactions, &self.intact, &self.owner);
         let (dual_starts, dual_ends, dual) = (&self.dual_starts, &self.dual_ends, &self.dual);
         out.par_iter_mut().enumerate().for_each(|(k, t)| {
-            let c = &body.constants[k];
-            let mut force = [0.0; 2];
-            let mut distortion = 0.0;
-            for b in starts[k]..ends[k] {
-                force[0] += bond_force[b][0];
-                force[1] += bond_force[b][1];
-                if intact[b] != 0 {
-                    distortion += c.distortion_energy(stretch[b], lengths[b], weight_distortion[b]);
+            let gate = self.criteria.get(k).copied().unwrap_or(f64::INFINITY);
+            let list = dual_starts[k]..dual_ends[k];
+            for f in &reactions[list.clone()] {
+                t.force[0] -= f[0];
+                t.force[1] -= f[1];
+            }
+            let mut lost = t.damage;
+            if gate.is_finite() {
+                for &b in &dual[list] {
+                    if intact[b as usize] == 0 {
+                        lost += body.volumes[owner[b as usize] as usize];
+                    }
                 }
             }
-            for &b in &dual[dual_starts[k]..dual_ends[k]] {
-                force[0] -= bond_force[b as usize][0];
-                force[1] -= bond_force[b as usize][1];
+            if !gate.is_finite() {
+                t.damage = 0.0;
+                return;
             }
-            t.force = force;
-            t.energy_density = c.a * t.dilatation * t.dilatation + distortion;
-            // The splitting criteria's inputs, while the particle's bonds are in cache.
-            let gate = self.criteria.get(k).copied().unwrap_or(f64::INFINITY);
-            if gate.is_finite() {
-                let lost = self.lost_volume(k, body.volumes);
-                t.damage = if self.row_volume[k] > 0.0 {
-                    lost / self.row_volume[k]
-                } else {
-                    0.0
-                };
-                t.strains = if lost > 0.0 || t.energy_density >= gate {
-                    self.normal_strains(k, body, positions)
-                } else {
-                    [0.0; 2]
-                };
-            }
+            // The splitting criteria's inputs.
+            t.damage = if self.row_volume[k] > 0.0 {
+                lost / self.row_volume[k]
+            } else {
+                0.0
+            };
+            t.strains = if lost > 0.0 || t.energy_density >= gate {
+                self.normal_strains(k, body, positions)
+            } else {
+                [0.0; 2]
+            };
         });
         broken
     }
@@ -654,7 +734,8 @@ impl DualBonds {
             let xi = [x[j][0] - x[k][0], x[j][1] - x[k][1]];
             for (p, row) in sigma.iter_mut().enumerate() {
                 for (q, s) in row.iter_mut().enumerate() {
-                    *s += self.bond_force[b][p] * xi[q] / body.volumes[k];
+                    let force = self.reactions[self.reaction_slot[b] as usize];
+                    *s += force[p] * xi[q] / body.volumes[k];
                 }
             }
         }
@@ -667,22 +748,6 @@ impl DualBonds {
             .into_par_iter()
             .map(|k| self.damage_of(k, volumes))
             .collect()
-    }
-
-    /// Σ V_j over particle k's broken bonds and broken dual bonds (the numerator of (14)).
-    fn lost_volume(&self, k: usize, volumes: &[f64]) -> f64 {
-        let mut lost = 0.0;
-        for b in self.range(k) {
-            if self.intact[b] == 0 {
-                lost += volumes[self.neighbors[b] as usize];
-            }
-        }
-        for &b in self.dual_bonds(k) {
-            if self.intact[b as usize] == 0 {
-                lost += volumes[self.owner[b as usize] as usize];
-            }
-        }
-        lost
     }
 
     /// Damage (14) of particle k:
@@ -777,9 +842,9 @@ impl DualBonds {
 
     /// Bytes held per directed bond (bond arrays, dual lists and scratch).
     pub fn bytes_per_bond(&self) -> f64 {
-        // neighbor, owner, dual: u32; μ: u8; length, two weights, stretch, cosine: f64; force:
-        // 2 f64.
-        (3 * 4 + 1 + 5 * 8 + 16) as f64
+        // neighbor, owner, dual entry, reaction slot: u32; μ: u8; length, two weights: f64;
+        // reaction: 2 f64.
+        (4 * 4 + 1 + 3 * 8 + 16) as f64
     }
 }
 

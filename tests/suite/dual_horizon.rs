@@ -248,6 +248,10 @@ fn local_row_updates_match_a_global_rebuild() {
         let before = local.bonds.slot_count();
         local.split(&[parent], 0.5);
         compactions += usize::from(local.bonds.slot_count() < before);
+        assert!(
+            local.bonds.rows_are_disjoint(),
+            "rows overlap after split {splits}"
+        );
         splits += 1;
         assert!(splits < 40, "{compactions} compactions in {splits} splits");
     }
