@@ -203,7 +203,8 @@ pub fn verlet_limit(lambda_max: f64) -> f64 {
 mod tests {
     use super::*;
 
-    /// A 1D chain of unit masses and springs k: λ_max → 4k (alternating mode).
+    /// A 1D chain of unit masses and springs k: λ_max → 4k (alternating mode; the top of the
+    /// spectrum is a dense cluster).
     #[test]
     fn spring_chain_spectral_radius() {
         let n = 200;
@@ -219,7 +220,9 @@ mod tests {
                 out[i][0] = k * (left + right);
             }
         });
-        assert!((lambda / (4.0 * k) - 1.0).abs() < 2e-3, "{lambda}");
+        // Within a quarter of the margin the step keeps, from below.
+        let allowed = (SPECTRAL_MARGIN - 1.0) / 4.0;
+        assert!((lambda / (4.0 * k) - 1.0).abs() < allowed, "{lambda}");
         assert!(lambda <= 4.0 * k);
     }
 
@@ -238,7 +241,8 @@ mod tests {
     }
 
     /// Lanczos on a diagonal operator with a cluster at the top (the hard case for power
-    /// iteration): within 1e-3 of λ_max in 60 applications, from below.
+    /// iteration): from below, within a quarter of the margin the step keeps, in fewer than
+    /// 60 applications.
     #[test]
     fn lanczos_finds_the_top_of_a_clustered_spectrum() {
         let n = 2000;
@@ -254,8 +258,9 @@ mod tests {
             }
         });
         assert!(lambda <= top * (1.0 + 1e-12), "{lambda} above {top}");
+        let allowed = (SPECTRAL_MARGIN - 1.0) / 4.0;
         assert!(
-            lambda / top > 1.0 - 1e-3,
+            lambda / top > 1.0 - allowed && applications < POWER_ITERATIONS,
             "{lambda} against {top} after {applications}"
         );
     }

@@ -508,7 +508,7 @@ impl DualBonds {
     }
 
     /// Points the bonds of particle k's dual list at their entries and clears the entries
-    /// (a broken bond's reaction stays zero: the force pass skips it).
+    /// (the force pass writes every live bond's entry, zero where the bond is broken).
     fn place_reactions(&mut self, k: usize) {
         for d in self.dual_starts[k]..self.dual_ends[k] {
             self.reaction_slot[self.dual[d] as usize] = d as u32;
@@ -648,7 +648,6 @@ impl DualBonds {
                     let (_, _, stretch, cosine, _) = kinematics(k, neighbors[b] as usize, b);
                     if stretch >= c.critical_stretch {
                         unsafe { intact.write(b, 0) };
-                        unsafe { reactions.write(reaction_slot[b] as usize, [0.0; 2]) };
                         broken += 1;
                     } else {
                         theta += c.dilatation_term(cosine, stretch, weight_theta[b]);
@@ -659,6 +658,9 @@ impl DualBonds {
                 for b in row {
                     let j = neighbors[b] as usize;
                     if unsafe { intact.read(b) } == 0 {
+                        // Every pass, not only at the break: μ is a public column that
+                        // pre-cracks and restarts set directly.
+                        unsafe { reactions.write(reaction_slot[b] as usize, [0.0; 2]) };
                         if gated {
                             lost += body.volumes[j];
                         }
