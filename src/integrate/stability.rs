@@ -165,6 +165,53 @@ pub fn spectral_radius(
     radius
 }
 
+/// Spectral radius of a general (possibly non-symmetric) operator on a scalar field, by
+/// Arnoldi iteration with `dimension` Krylov vectors (modified Gram–Schmidt, a deterministic
+/// random start; Saad, Numerical Methods for Large Eigenvalue Problems, §6.2): the largest
+/// modulus among the eigenvalues of the Hessenberg matrix H_m, whose outer eigenvalues
+/// converge to the operator's outermost, complex pairs included, in far fewer applications
+/// than power iteration needs. Holds `dimension + 1` vectors of `n`.
+pub fn arnoldi_spectral_radius(
+    n: usize,
+    dimension: usize,
+    mut apply: impl FnMut(&[f64], &mut [f64]),
+) -> f64 {
+    let mut rng = SplitMix64(0xD1FF);
+    let mut basis: Vec<Vec<f64>> = Vec::with_capacity(dimension + 1);
+    let start: Vec<f64> = (0..n).map(|_| rng.next_f64() - 0.5).collect();
+    let norm = start.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if n == 0 || norm == 0.0 {
+        return 0.0;
+    }
+    basis.push(start.iter().map(|x| x / norm).collect());
+    let mut hessenberg = nalgebra::DMatrix::<f64>::zeros(dimension + 1, dimension);
+    let mut size = 0;
+    for j in 0..dimension {
+        let mut w = vec![0.0; n];
+        apply(&basis[j], &mut w);
+        for (i, v) in basis.iter().enumerate() {
+            let h: f64 = v.iter().zip(&w).map(|(a, b)| a * b).sum();
+            hessenberg[(i, j)] = h;
+            w.iter_mut().zip(v).for_each(|(w, v)| *w -= h * v);
+        }
+        let beta = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+        hessenberg[(j + 1, j)] = beta;
+        size = j + 1;
+        let scale = hessenberg.column(j).amax();
+        if !beta.is_finite() || beta <= 1e-12 * scale {
+            break;
+        }
+        w.iter_mut().for_each(|x| *x /= beta);
+        basis.push(w);
+    }
+    let square = hessenberg.view((0, 0), (size, size)).into_owned();
+    square
+        .complex_eigenvalues()
+        .iter()
+        .map(|z| z.norm())
+        .fold(0.0, f64::max)
+}
+
 /// The margin kept on an eigenvalue or spectral radius found by power iteration (which
 /// approaches it from below).
 pub const SPECTRAL_MARGIN: f64 = 1.02;
@@ -238,6 +285,35 @@ mod tests {
                 "n = {n}: {largest} against {exact}"
             );
         }
+    }
+
+    /// Arnoldi on a non-symmetric operator whose outermost eigenvalues are a complex pair
+    /// (the case that makes power iteration's growth oscillate): 2 × 2 rotation-scaling blocks
+    /// r_i (cos φ_i, −sin φ_i; sin φ_i, cos φ_i) plus an upper coupling, radius max r_i,
+    /// found from below within a quarter of the margin in 40 applications.
+    #[test]
+    fn arnoldi_finds_a_complex_outer_pair() {
+        let blocks = 500;
+        let radii: Vec<f64> = (0..blocks)
+            .map(|b| 1.0 + 4.0 * (b as f64 / blocks as f64).sqrt())
+            .collect();
+        let top = radii[blocks - 1];
+        let radius = arnoldi_spectral_radius(2 * blocks, 40, |v, out| {
+            for b in 0..blocks {
+                let (r, phi) = (radii[b], 0.3 + b as f64 * 1e-3);
+                let (x, y) = (v[2 * b], v[2 * b + 1]);
+                out[2 * b] = r * (phi.cos() * x - phi.sin() * y);
+                out[2 * b + 1] = r * (phi.sin() * x + phi.cos() * y);
+                if b + 1 < blocks {
+                    out[2 * b] += 0.05 * v[2 * b + 2];
+                }
+            }
+        });
+        let allowed = (SPECTRAL_MARGIN - 1.0) / 4.0;
+        assert!(
+            (radius / top - 1.0).abs() < allowed,
+            "{radius} against {top}"
+        );
     }
 
     /// Lanczos on a diagonal operator with a cluster at the top (the hard case for power

@@ -39,8 +39,9 @@ const KICK: usize = 3;
 const CONSTRAINTS: usize = 4;
 const ABSORBING: usize = 5;
 
-/// Power iterations for the (non-symmetric) hybrid operator's spectral radius.
-const HYBRID_ITERATIONS: usize = 200;
+/// Krylov vectors (operator applications) for the (non-symmetric) hybrid operator's spectral
+/// radius by Arnoldi (200 power iterations before).
+const HYBRID_KRYLOV_DIMENSION: usize = 40;
 
 /// A prescribed node component: node, axis, value.
 type Held = (u32, u8, f64);
@@ -180,12 +181,13 @@ fn level_stable_step<const D: usize>(
     });
     let mut sharp = stability::verlet_step(lambda_max).max(guaranteed);
     if let Some(w) = coarse_wls {
-        let radius = stability::spectral_radius(n * D, HYBRID_ITERATIONS, |v, out| {
-            let u = v.as_chunks::<D>().0;
-            let out = out.as_chunks_mut::<D>().0;
-            out.fill([0.0; D]);
-            w.apply_linearized(u, density, out, |i| rows.coarse[i] == 0);
-        });
+        let radius =
+            stability::arnoldi_spectral_radius(n * D, HYBRID_KRYLOV_DIMENSION, |v, out| {
+                let u = v.as_chunks::<D>().0;
+                let out = out.as_chunks_mut::<D>().0;
+                out.fill([0.0; D]);
+                w.apply_linearized(u, density, out, |i| rows.coarse[i] == 0);
+            });
         sharp = sharp.min(stability::verlet_step(radius));
     }
     StableStep {
@@ -217,15 +219,16 @@ fn stable_step<const D: usize>(
         // The WLS blocks are not symmetric and their stencil is tighter than the family's: the
         // hybrid operator's spectral radius (power iteration) bounds Δt too, and (3.8) does not
         // cover it.
-        let radius = stability::spectral_radius(n * D, HYBRID_ITERATIONS, |v, out| {
-            let u = v.as_chunks::<D>().0;
-            let out = out.as_chunks_mut::<D>().0;
-            let mask = h.mask();
-            scheme.apply_linearized_masked(&coefficients, intact, u, out, |i| {
-                mask[i] == SchemeClass::Wls
+        let radius =
+            stability::arnoldi_spectral_radius(n * D, HYBRID_KRYLOV_DIMENSION, |v, out| {
+                let u = v.as_chunks::<D>().0;
+                let out = out.as_chunks_mut::<D>().0;
+                let mask = h.mask();
+                scheme.apply_linearized_masked(&coefficients, intact, u, out, |i| {
+                    mask[i] == SchemeClass::Wls
+                });
+                h.apply_linearized(u, density, out);
             });
-            h.apply_linearized(u, density, out);
-        });
         sharp = sharp.min(stability::verlet_step(radius));
     }
     StableStep {
