@@ -290,7 +290,7 @@ mod tests {
     /// Arnoldi on a non-symmetric operator whose outermost eigenvalues are a complex pair
     /// (the case that makes power iteration's growth oscillate): 2 × 2 rotation-scaling blocks
     /// r_i (cos φ_i, −sin φ_i; sin φ_i, cos φ_i) plus an upper coupling, radius max r_i,
-    /// found from below within a quarter of the margin in 40 applications.
+    /// found within a quarter of the margin in 40 applications (Arnoldi gives no side).
     #[test]
     fn arnoldi_finds_a_complex_outer_pair() {
         let blocks = 500;
