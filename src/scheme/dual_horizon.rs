@@ -507,12 +507,11 @@ impl DualBonds {
         }
     }
 
-    /// Points the bonds of particle k's dual list at their entries and clears the entries
-    /// (the force pass writes every live bond's entry, zero where the bond is broken).
+    /// Points the bonds of particle k's dual list at their entries (the force pass writes
+    /// every live bond's entry, zero where the bond is broken, before anything reads them).
     fn place_reactions(&mut self, k: usize) {
         for d in self.dual_starts[k]..self.dual_ends[k] {
             self.reaction_slot[self.dual[d] as usize] = d as u32;
-            self.reactions[d] = [0.0; 2];
         }
     }
 

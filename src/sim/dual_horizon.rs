@@ -540,7 +540,7 @@ impl DualHorizonSimulation {
 
     /// Splits `parents` and brings what depends on the particle set up to date: the held
     /// components, the smallest cell, the split criteria and ADR's density (the new rows'
-    /// from the measured scale: no new power iteration, the row sums keep the shape, so
+    /// from the measured scale: no new eigenvalue estimate, the row sums keep the shape, so
     /// λ_max(D⁻¹K) stays; never below 1, the bound of exact absolute row sums).
     fn split_particles(&mut self, parents: &[u32], horizon_ratio: f64) {
         let material = self.spec.material;
