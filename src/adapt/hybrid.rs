@@ -14,6 +14,7 @@ use crate::scheme::wls::Collocation;
 use rayon::prelude::*;
 
 use super::bonds::{BondView, bond_squares, critical_margin};
+use super::interface::InterfaceDamping;
 use super::masks::SchemeClass;
 use super::motion::MotionBound;
 use crate::discretization::family::{self, Families};
@@ -94,6 +95,8 @@ pub struct Hybrid<const D: usize> {
     pub filtered_checks: u64,
     /// Tests: every check visits every node (no motion filter), the reference behaviour.
     pub exhaustive: bool,
+    /// Velocity exchange near the Ω_s/Ω_w interface (rebuilt with the mask).
+    damping: InterfaceDamping,
 }
 
 /// Ω_s of the initial configuration: nodes within `band` of the body's boundary (sampled on
@@ -189,7 +192,9 @@ impl<const D: usize> Hybrid<D> {
             full_checks: 0,
             filtered_checks: 0,
             exhaustive: false,
+            damping: InterfaceDamping::new(spec.interface_damping, spec.interface_band, families),
         };
+        hybrid.damping.rebuild(&hybrid.mask);
         hybrid.rebuild_check_set(families);
         Ok(hybrid)
     }
@@ -444,6 +449,9 @@ impl<const D: usize> Hybrid<D> {
             }
         }
         self.standard_nodes += switched.len();
+        if !switched.is_empty() {
+            self.damping.rebuild(&self.mask);
+        }
         self.extend_check_set(&switched, families);
         switched.len()
     }
@@ -622,6 +630,7 @@ impl<const D: usize> Hybrid<D> {
         (self.checked_bonds, self.full_checks, self.filtered_checks) =
             (counters[0], counters[1], counters[2]);
         self.events.clear();
+        self.damping.rebuild(&self.mask);
         self.rebuild_check_set(families);
         Ok(())
     }
@@ -670,6 +679,17 @@ impl<const D: usize> Hybrid<D> {
         let mask = &self.mask;
         self.wls
             .forces(reference, positions, |i| mask[i] == SchemeClass::Wls);
+    }
+
+    /// The interface damping's exchange on the new velocities of a step `dt` (the run's stable
+    /// step `stable_dt` sets its rate).
+    pub fn damp_interface(&mut self, velocities: &mut [[f64; D]], dt: f64, stable_dt: f64) {
+        self.damping.apply(velocities, dt, stable_dt);
+    }
+
+    /// The nodes the interface damping acts on.
+    pub fn damped_nodes(&self) -> &[u32] {
+        self.damping.damped()
     }
 
     /// Node i's WLS force from the last [`Self::wls_forces`], if it is in Ω_w.

@@ -7,6 +7,7 @@
 pub mod bonds;
 pub mod fixed;
 pub mod hybrid;
+pub mod interface;
 pub mod masks;
 pub mod motion;
 pub mod multiadaptive;

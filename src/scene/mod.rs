@@ -133,6 +133,10 @@ pub struct HybridSpec {
     pub chi: f64,
     pub check: CheckSet,
     pub check_every: u64,
+    /// κ of the interface damping (`adapt::interface`): 0 turns it off.
+    pub interface_damping: f64,
+    /// Half-width of its band on each side of the Ω_s/Ω_w interface (m).
+    pub interface_band: f64,
 }
 
 /// Two grid levels, the fine one `ratio` times finer (thesis §3.4–3.5).

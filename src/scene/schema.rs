@@ -166,6 +166,12 @@ pub struct HybridTable {
     pub collocation_orbits: Option<Vec<Vec<u32>>>,
     /// Exponent a of the Ω_w fit weight exp(−a d²/r̄²) (the papers' (3.26): 16).
     pub fit_weight: Option<f64>,
+    /// κ of the velocity exchange between lattice neighbours near the Ω_s/Ω_w interface, as a
+    /// share of the top lattice frequency (0 … 0.1; 0: off, the papers' coupling).
+    pub interface_damping: Option<f64>,
+    /// Half-width of the damped band on each side of the interface ("0.5 horizon", "1 mm").
+    #[serde(default = "default_interface_band")]
+    pub interface_band: Measure,
 }
 
 impl Default for HybridTable {
@@ -178,8 +184,14 @@ impl Default for HybridTable {
             collocation_factor: None,
             collocation_orbits: None,
             fit_weight: None,
+            interface_damping: None,
+            interface_band: default_interface_band(),
         }
     }
+}
+
+fn default_interface_band() -> Measure {
+    Measure::Relative(0.5, super::units::Relative::Horizon)
 }
 
 fn default_band() -> Measure {

@@ -806,14 +806,37 @@ fn hybrid(
     if let Some(k) = h.collocation_factor {
         collocation_factor(ctx, "hybrid.collocation_factor", k)?;
     }
+    let interface_damping = h.interface_damping.unwrap_or(DEFAULT_INTERFACE_DAMPING);
+    if !(0.0..=0.02).contains(&interface_damping) {
+        return Err(ctx.error(
+            "hybrid.interface_damping",
+            format!("must be in [0, 0.02], got {interface_damping}"),
+        ));
+    }
+    let interface_band = length(ctx, "hybrid.interface_band", h.interface_band, spacing, horizon)?;
+    if !(interface_band >= spacing * (1.0 - 1e-9) && interface_band <= 2.0 * horizon) {
+        return Err(ctx.error(
+            "hybrid.interface_band",
+            format!(
+                "{interface_band:.4e} m must be between one spacing ({spacing:.4e} m) and two \
+                 horizons ({:.4e} m)",
+                2.0 * horizon
+            ),
+        ));
+    }
     Ok(Some(HybridSpec {
         adaptive: kind == SchemeKind::HybridAdaptive,
         band,
         chi,
         check: h.check,
         check_every: h.check_every,
+        interface_damping,
+        interface_band,
     }))
 }
+
+/// κ of the hybrid's interface damping (`adapt::interface`; docs/results.md, issue 14).
+const DEFAULT_INTERFACE_DAMPING: f64 = 0.02;
 
 /// The collocation fields of one preset table (`hybrid` for Ω_w, `multigrid` for a WLS coarse
 /// level).

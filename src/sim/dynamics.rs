@@ -957,6 +957,10 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         self.compute_forces();
         lap.charge(&mut self.run.stages, FORCES);
         let max_speed2 = self.accelerate(Some(dt));
+        if let Some(h) = self.hybrid.as_mut() {
+            let velocities = self.discretization.nodes.fields.get_mut(self.columns.velocity);
+            h.damp_interface(velocities, dt, self.run.stable.sharp);
+        }
         lap.charge(&mut self.run.stages, KICK);
         self.apply_constraints();
         lap.charge(&mut self.run.stages, CONSTRAINTS);

@@ -1,0 +1,191 @@
+//! Damping at the hybrid's Ω_s/Ω_w interface (not in the papers; issue 14, docs/results.md "The
+//! hybrid's coupling is unstable").
+//!
+//! The hybrid couples the two schemes row by row (seed-004 §4.3: an Ω_s node sums PD bond forces
+//! over its whole family, an Ω_w node applies its WLS row, whose columns may lie in Ω_s). Each row
+//! is consistent, but the coupled stiffness is not symmetric, and its eigenvalues are not all
+//! real: modes at about 0.6 of the top lattice frequency, concentrated within a horizon of the
+//! interface, grow exponentially whatever Δt (a free plate's energy ×79 000 in 160 µs with the
+//! m = 4 orbit stencil, ×170 with the papers' δ/3 stencil at m = 8). A symmetric (energy-based)
+//! coupling is no cure: its truncated WLS pair sums are indefinite and it has ghost forces.
+//!
+//! The cure kept here: a velocity damping v ← v − r L D L v after every step, L the lattice
+//! graph Laplacian (Σ_j (v_i − v_j) over the lattice neighbours), D the indicator of a band of
+//! half-width `hybrid.interface_band` (default δ/2) on both sides of the interface, r = κ ω_max
+//! Δt with ω_max = 2/Δt_stable (`hybrid.interface_damping` = κ, default 0.02). L D L is
+//! symmetric positive semi-definite with zero column sums, so linear momentum is exact and the
+//! kinetic energy never rises; on a smooth field L v = O(Δx² ∇²v), so a wave of wave number k
+//! loses O(r (kΔx)⁴) per step while it crosses the band, whereas the growing modes (kΔx ≈ 1–2)
+//! lose O(r). The explicit update is stable for r · λ_max(L)² < 2, λ_max(L) ≤ 4·D on a
+//! D-dimensional lattice: κ ≤ 0.02 keeps r · 64 ≤ 0.9 at 0.7 of the stable step in 2D.
+//! A Laplacian damping (r L D) instead takes O(r (kΔx)²) from smooth waves: 67 % of a free
+//! plate's energy in 160 µs where this one takes 5–12 % (docs/results.md).
+//! Not handled: a lattice pair across a crack is still damped (cracks stay ≥ δ inside Ω_s
+//! because switching moves H_i ∪ H_j of every critical bond, and the band reaches δ/2 into it).
+
+use super::masks::SchemeClass;
+use crate::discretization::Families;
+use rayon::prelude::*;
+
+/// Lattice neighbours are family members within this multiple of the node's shortest bond.
+const LATTICE_REACH: f64 = 1.01;
+
+pub struct InterfaceDamping {
+    /// κ: the damping rate as a share of the top lattice frequency.
+    pub strength: f64,
+    /// The band's half-width in lattice hops.
+    hops: usize,
+    /// Per node, its lattice neighbours (CSR; a symmetric relation on a uniform lattice).
+    lattice_offsets: Vec<usize>,
+    lattice: Vec<u32>,
+    /// The band's nodes (B), where the damping weighs the lattice Laplacian of v.
+    band: Vec<u32>,
+    /// The nodes the update changes (B and their lattice neighbours), each with its slot in
+    /// `band` (u32::MAX if outside) and the band slots of its lattice neighbours in B (CSR).
+    touched: Vec<(u32, u32)>,
+    touched_offsets: Vec<usize>,
+    touched_partners: Vec<u32>,
+    /// Scratch: (L v)_b per band node, then the change per touched node.
+    laplacian: Vec<[f64; 3]>,
+    change: Vec<[f64; 3]>,
+}
+
+impl InterfaceDamping {
+    /// The lattice-neighbour lists of every node (built once): family members within
+    /// LATTICE_REACH of the shortest bond of the whole grid.
+    /// `band`: the band's half-width (m), rounded to lattice hops.
+    pub fn new(strength: f64, band: f64, families: &Families) -> Self {
+        let n = families.offsets.len() - 1;
+        let shortest = families.lengths.iter().copied().fold(f64::INFINITY, f64::min);
+        let mut lattice_offsets = Vec::with_capacity(n + 1);
+        lattice_offsets.push(0);
+        let mut lattice = Vec::new();
+        for i in 0..n {
+            lattice.extend(
+                families
+                    .range(i)
+                    .filter(|&b| families.lengths[b] <= LATTICE_REACH * shortest)
+                    .map(|b| families.neighbors[b]),
+            );
+            lattice_offsets.push(lattice.len());
+        }
+        let hops = ((band / shortest).round() as usize).max(1);
+        InterfaceDamping {
+            strength,
+            hops,
+            lattice_offsets,
+            lattice,
+            band: Vec::new(),
+            touched: Vec::new(),
+            touched_offsets: vec![0],
+            touched_partners: Vec::new(),
+            laplacian: Vec::new(),
+            change: Vec::new(),
+        }
+    }
+
+    fn neighbours(&self, i: usize) -> &[u32] {
+        &self.lattice[self.lattice_offsets[i]..self.lattice_offsets[i + 1]]
+    }
+
+    /// Rebuilds the band for `mask` (after every switch).
+    pub fn rebuild(&mut self, mask: &[SchemeClass]) {
+        let n = mask.len();
+        // Hop 0: nodes with a lattice neighbour of the other class.
+        let mut in_band: Vec<bool> = (0..n)
+            .into_par_iter()
+            .map(|i| self.neighbours(i).iter().any(|&j| mask[j as usize] != mask[i]))
+            .collect();
+        for _ in 1..self.hops {
+            in_band = (0..n)
+                .into_par_iter()
+                .map(|i| in_band[i] || self.neighbours(i).iter().any(|&j| in_band[j as usize]))
+                .collect();
+        }
+        let mut slot = vec![u32::MAX; n];
+        self.band.clear();
+        for i in (0..n).filter(|&i| in_band[i]) {
+            slot[i] = self.band.len() as u32;
+            self.band.push(i as u32);
+        }
+        self.touched.clear();
+        self.touched_partners.clear();
+        self.touched_offsets.clear();
+        self.touched_offsets.push(0);
+        for i in 0..n {
+            let before = self.touched_partners.len();
+            let lattice = &self.lattice[self.lattice_offsets[i]..self.lattice_offsets[i + 1]];
+            let partners = lattice.iter().filter(|&&j| in_band[j as usize]);
+            self.touched_partners.extend(partners.map(|&j| slot[j as usize]));
+            if in_band[i] || self.touched_partners.len() > before {
+                self.touched.push((i as u32, slot[i]));
+                self.touched_offsets.push(self.touched_partners.len());
+            }
+        }
+        self.laplacian.resize(self.band.len(), [0.0; 3]);
+        self.change.resize(self.touched.len(), [0.0; 3]);
+    }
+
+    /// The band's nodes (tests, recordings).
+    pub fn damped(&self) -> &[u32] {
+        &self.band
+    }
+
+    /// One damping update of `velocities` after a step `dt` of a run whose stable step is
+    /// `stable_dt`: v ← v − r L D L v, L the lattice graph Laplacian (Σ_j (v_i − v_j) over the
+    /// lattice neighbours), D the band's indicator, r = κ ω_max Δt, ω_max = 2/stable_dt. L D L is
+    /// symmetric positive semi-definite with zero column sums: momentum exact, kinetic energy
+    /// never rises; on a smooth field L v = O(Δx² ∇²v), so smooth waves lose O((kΔx)⁴).
+    pub fn apply<const D: usize>(&mut self, velocities: &mut [[f64; D]], dt: f64, stable_dt: f64) {
+        if self.strength == 0.0 || self.band.is_empty() {
+            return;
+        }
+        let rate = self.strength * 2.0 / stable_dt * dt;
+        let v = &*velocities;
+        let (lattice, lattice_offsets) = (&self.lattice, &self.lattice_offsets);
+        let band = &self.band;
+        self.laplacian
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(1024)
+            .for_each(|(b, l)| {
+                let i = band[b] as usize;
+                *l = [0.0; 3];
+                for &j in &lattice[lattice_offsets[i]..lattice_offsets[i + 1]] {
+                    for k in 0..D {
+                        l[k] += v[i][k] - v[j as usize][k];
+                    }
+                }
+            });
+        let w = &self.laplacian;
+        let (touched, offsets, partners) =
+            (&self.touched, &self.touched_offsets, &self.touched_partners);
+        self.change
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(1024)
+            .for_each(|(t, c)| {
+                let (i, own) = touched[t];
+                let degree = (lattice_offsets[i as usize + 1] - lattice_offsets[i as usize]) as f64;
+                *c = [0.0; 3];
+                if own != u32::MAX {
+                    for k in 0..D {
+                        c[k] = degree * w[own as usize][k];
+                    }
+                }
+                for &b in &partners[offsets[t]..offsets[t + 1]] {
+                    for k in 0..D {
+                        c[k] -= w[b as usize][k];
+                    }
+                }
+                for x in c.iter_mut() {
+                    *x *= -rate;
+                }
+            });
+        for (&(i, _), change) in touched.iter().zip(&self.change) {
+            for k in 0..D {
+                velocities[i as usize][k] += change[k];
+            }
+        }
+    }
+}
