@@ -56,7 +56,11 @@ impl InterfaceDamping {
     /// `band`: the band's half-width (m), rounded to lattice hops.
     pub fn new(strength: f64, band: f64, families: &Families) -> Self {
         let n = families.offsets.len() - 1;
-        let shortest = families.lengths.iter().copied().fold(f64::INFINITY, f64::min);
+        let shortest = families
+            .lengths
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
         let mut lattice_offsets = Vec::with_capacity(n + 1);
         lattice_offsets.push(0);
         let mut lattice = Vec::new();
@@ -94,7 +98,11 @@ impl InterfaceDamping {
         // Hop 0: nodes with a lattice neighbour of the other class.
         let mut in_band: Vec<bool> = (0..n)
             .into_par_iter()
-            .map(|i| self.neighbours(i).iter().any(|&j| mask[j as usize] != mask[i]))
+            .map(|i| {
+                self.neighbours(i)
+                    .iter()
+                    .any(|&j| mask[j as usize] != mask[i])
+            })
             .collect();
         for _ in 1..self.hops {
             in_band = (0..n)
@@ -116,7 +124,8 @@ impl InterfaceDamping {
             let before = self.touched_partners.len();
             let lattice = &self.lattice[self.lattice_offsets[i]..self.lattice_offsets[i + 1]];
             let partners = lattice.iter().filter(|&&j| in_band[j as usize]);
-            self.touched_partners.extend(partners.map(|&j| slot[j as usize]));
+            self.touched_partners
+                .extend(partners.map(|&j| slot[j as usize]));
             if in_band[i] || self.touched_partners.len() > before {
                 self.touched.push((i as u32, slot[i]));
                 self.touched_offsets.push(self.touched_partners.len());

@@ -813,7 +813,13 @@ fn hybrid(
             format!("must be in [0, 0.02], got {interface_damping}"),
         ));
     }
-    let interface_band = length(ctx, "hybrid.interface_band", h.interface_band, spacing, horizon)?;
+    let interface_band = length(
+        ctx,
+        "hybrid.interface_band",
+        h.interface_band,
+        spacing,
+        horizon,
+    )?;
     if !(interface_band >= spacing * (1.0 - 1e-9) && interface_band <= 2.0 * horizon) {
         return Err(ctx.error(
             "hybrid.interface_band",

@@ -958,7 +958,11 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         lap.charge(&mut self.run.stages, FORCES);
         let max_speed2 = self.accelerate(Some(dt));
         if let Some(h) = self.hybrid.as_mut() {
-            let velocities = self.discretization.nodes.fields.get_mut(self.columns.velocity);
+            let velocities = self
+                .discretization
+                .nodes
+                .fields
+                .get_mut(self.columns.velocity);
             h.damp_interface(velocities, dt, self.run.stable.sharp);
         }
         lap.charge(&mut self.run.stages, KICK);
