@@ -198,3 +198,70 @@ impl InterfaceDamping {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 20 × 20 lattice (Δx = 1, horizon 3) with Ω_s the left half.
+    fn lattice() -> (Vec<[f64; 2]>, Families, Vec<SchemeClass>) {
+        let positions: Vec<[f64; 2]> = (0..400)
+            .map(|k| [(k / 20) as f64, (k % 20) as f64])
+            .collect();
+        let families = Families::build(&positions, 3.0);
+        let mask = positions
+            .iter()
+            .map(|x| {
+                if x[0] < 10.0 {
+                    SchemeClass::Standard
+                } else {
+                    SchemeClass::Wls
+                }
+            })
+            .collect();
+        (positions, families, mask)
+    }
+
+    /// Momentum is exact (Σ v unchanged to round-off), the kinetic energy falls, only nodes
+    /// within the band and their lattice neighbours change, and a velocity field linear in x
+    /// (L v = 0 away from the lattice's edge) passes the band unchanged.
+    #[test]
+    fn the_damping_keeps_momentum_takes_energy_and_leaves_linear_fields_alone() {
+        let (x, families, mask) = lattice();
+        let mut damping = InterfaceDamping::new(0.02, 1.0, &families);
+        damping.rebuild(&mask);
+        // The band: the columns x = 9 and 10 (one hop on each side).
+        assert_eq!(damping.damped().len(), 40);
+        assert!(damping.damped().iter().all(|&i| {
+            let c = x[i as usize][0];
+            c == 9.0 || c == 10.0
+        }));
+        let mut state = 0x1234_5678_u64;
+        let mut random = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let before: Vec<[f64; 2]> = (0..x.len()).map(|_| [random(), random()]).collect();
+        let mut v = before.clone();
+        damping.apply(&mut v, 0.7, 1.0);
+        let sum = |v: &[[f64; 2]]| {
+            v.iter()
+                .fold([0.0, 0.0], |s, a| [s[0] + a[0], s[1] + a[1]])
+        };
+        let energy = |v: &[[f64; 2]]| v.iter().map(|a| a[0] * a[0] + a[1] * a[1]).sum::<f64>();
+        let (p0, p1) = (sum(&before), sum(&v));
+        assert!((p0[0] - p1[0]).abs() < 1e-13 && (p0[1] - p1[1]).abs() < 1e-13);
+        assert!(energy(&v) < energy(&before));
+        for (i, (a, b)) in before.iter().zip(&v).enumerate() {
+            if a != b {
+                assert!((8.0..=11.0).contains(&x[i][0]), "node {i} at {:?} changed", x[i]);
+            }
+        }
+        let linear: Vec<[f64; 2]> = x.iter().map(|p| [0.3 * p[0], -0.1 * p[0] + 2.0]).collect();
+        let mut w = linear.clone();
+        damping.apply(&mut w, 0.7, 1.0);
+        for (a, b) in linear.iter().zip(&w) {
+            assert!((a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12);
+        }
+    }
+}
