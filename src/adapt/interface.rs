@@ -5,9 +5,10 @@
 //! over its whole family, an Ω_w node applies its WLS row, whose columns may lie in Ω_s). Each row
 //! is consistent, but the coupled stiffness is not symmetric, and its eigenvalues are not all
 //! real: modes at about 0.6 of the top lattice frequency, concentrated within a horizon of the
-//! interface, grow exponentially whatever Δt (a free plate's energy ×79 000 in 160 µs with the
-//! m = 4 orbit stencil, ×170 with the papers' δ/3 stencil at m = 8). A symmetric (energy-based)
-//! coupling is no cure: its truncated WLS pair sums are indefinite and it has ghost forces.
+//! interface, grow exponentially whatever Δt (a free plate ringing with a smooth pulse: energy
+//! ×2.6·10⁵ in 500 µs with the m = 4 orbit stencil, ×15 in 160 µs with the papers' δ/3 stencil
+//! at m = 8). A symmetric (energy-based) coupling is no cure: its truncated WLS pair sums are
+//! indefinite (a real unstable mode in a lattice model) and it has ghost forces.
 //!
 //! The cure kept here: a velocity damping v ← v − r L D L v after every step, L the lattice
 //! graph Laplacian (Σ_j (v_i − v_j) over the lattice neighbours), D the indicator of a band of
@@ -18,8 +19,8 @@
 //! loses O(r (kΔx)⁴) per step while it crosses the band, whereas the growing modes (kΔx ≈ 1–2)
 //! lose O(r). The explicit update is stable for r · λ_max(L)² < 2, λ_max(L) ≤ 4·D on a
 //! D-dimensional lattice: κ ≤ 0.02 keeps r · 64 ≤ 0.9 at 0.7 of the stable step in 2D.
-//! A Laplacian damping (r L D) instead takes O(r (kΔx)²) from smooth waves: 67 % of a free
-//! plate's energy in 160 µs where this one takes 5–12 % (docs/results.md).
+//! (A Laplacian damping r L D would take O(r (kΔx)²) from smooth waves.) Measured on a free
+//! plate ringing with a smooth pulse: 5–12 % of its energy in 160 µs (docs/results.md).
 //! Not handled: a lattice pair across a crack is still damped (cracks stay ≥ δ inside Ω_s
 //! because switching moves H_i ∪ H_j of every critical bond, and the band reaches δ/2 into it).
 
