@@ -10,7 +10,8 @@ then with the interface damping v' = K u − c L D L v (L the lattice Laplacian,
 BAND hops around the interface, c = kappa * omega_max) the largest Re of the first-order
 system and the damping rates of the lowest modes.
 Usage: coupling_spectrum.py M N STENCIL BAND KAPPAS   e.g. 4 24 fast4 2 0,0.005,0.01
-STENCIL: fast4 (m = 4 orbits of medium-fast), fast8 (paper-fast), d3_8 (the papers' δ/3 at m = 8)
+STENCIL: fast4 (m = 4 orbits of medium-fast), fast8 (paper-fast), d3_8 (the papers' δ/3 at m = 8),
+compact4 (a compact m = 4 set)
 """
 import importlib.util
 import os
@@ -24,7 +25,8 @@ scan = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(scan)
 
 STENCILS = {"fast4": ([(1, 1), (2, 1), (3, 0)], 6), "fast8": ([(3, 3), (4, 1), (4, 2)], 6),
-            "d3_8": ([(3, 0), (3, 3), (5, 0), (5, 3), (5, 5), (8, 0)], 16)}
+            "d3_8": ([(3, 0), (3, 3), (5, 0), (5, 3), (5, 5), (8, 0)], 16),
+            "compact4": ([(1, 0), (1, 1), (2, 1), (3, 0), (2, 2)], 16)}
 
 
 def main():
