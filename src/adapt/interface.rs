@@ -239,23 +239,26 @@ mod tests {
         }));
         let mut state = 0x1234_5678_u64;
         let mut random = || {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
         let before: Vec<[f64; 2]> = (0..x.len()).map(|_| [random(), random()]).collect();
         let mut v = before.clone();
         damping.apply(&mut v, 0.7, 1.0);
-        let sum = |v: &[[f64; 2]]| {
-            v.iter()
-                .fold([0.0, 0.0], |s, a| [s[0] + a[0], s[1] + a[1]])
-        };
+        let sum = |v: &[[f64; 2]]| v.iter().fold([0.0, 0.0], |s, a| [s[0] + a[0], s[1] + a[1]]);
         let energy = |v: &[[f64; 2]]| v.iter().map(|a| a[0] * a[0] + a[1] * a[1]).sum::<f64>();
         let (p0, p1) = (sum(&before), sum(&v));
         assert!((p0[0] - p1[0]).abs() < 1e-13 && (p0[1] - p1[1]).abs() < 1e-13);
         assert!(energy(&v) < energy(&before));
         for (i, (a, b)) in before.iter().zip(&v).enumerate() {
             if a != b {
-                assert!((8.0..=11.0).contains(&x[i][0]), "node {i} at {:?} changed", x[i]);
+                assert!(
+                    (8.0..=11.0).contains(&x[i][0]),
+                    "node {i} at {:?} changed",
+                    x[i]
+                );
             }
         }
         let linear: Vec<[f64; 2]> = x.iter().map(|p| [0.3 * p[0], -0.1 * p[0] + 2.0]).collect();
