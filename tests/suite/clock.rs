@@ -102,20 +102,23 @@ fn event_time_and_step(text: &str) -> (f64, u64) {
 
 /// The hybrid's switching events carry the clock's time of their step, before and after Δt
 /// was halved; the run ends at the preset's 87 µs and its cracks are those of the unchanged
-/// run (a smaller Δt is not a different physics: within the 3° the hybrid tests allow).
+/// run (a smaller Δt is not a different physics: within the 3° the hybrid tests allow). On
+/// `medium-hybrid` (measured 65.0°/65.3° against 65.3°/65.6°): on the coarse `small-hybrid`
+/// (δ = 4 Δx = 4 mm) the upper crack's angle scatters by 2–3.5° between such runs, with or
+/// without the interface damping (58.2–62.3°; all standard 63.8°).
 #[test]
 fn hybrid_events_and_crack_angles_read_the_clock_after_a_dt_change() {
     let plain = record(
         "kalthoff-winkler",
-        "small-hybrid",
+        "medium-hybrid",
         None,
         &temp("kw-hybrid.rrd"),
     );
     let path = temp("kw-hybrid-dt.rrd");
-    let change_step = 60u64;
+    let change_step = 300u64;
     let changed = record(
         "kalthoff-winkler",
-        "small-hybrid",
+        "medium-hybrid",
         Some(&format!("at {change_step} steps set dt 0.35 stable\n")),
         &path,
     );
