@@ -687,11 +687,6 @@ impl<const D: usize> Hybrid<D> {
         self.damping.apply(velocities, dt, stable_dt);
     }
 
-    /// The nodes the interface damping acts on.
-    pub fn damped_nodes(&self) -> &[u32] {
-        self.damping.damped()
-    }
-
     /// Node i's WLS force from the last [`Self::wls_forces`], if it is in Ω_w.
     #[inline]
     pub fn wls_force_of(&self, i: usize) -> Option<[f64; D]> {

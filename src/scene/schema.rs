@@ -167,7 +167,7 @@ pub struct HybridTable {
     /// Exponent a of the Ω_w fit weight exp(−a d²/r̄²) (the papers' (3.26): 16).
     pub fit_weight: Option<f64>,
     /// κ of the velocity exchange between lattice neighbours near the Ω_s/Ω_w interface, as a
-    /// share of the top lattice frequency (0 … 0.1; 0: off, the papers' coupling).
+    /// share of the top lattice frequency (0 … 0.02; 0: off, the papers' coupling).
     pub interface_damping: Option<f64>,
     /// Half-width of the damped band on each side of the interface ("0.5 horizon", "1 mm").
     #[serde(default = "default_interface_band")]

@@ -217,7 +217,7 @@ fn stable_step<const D: usize>(
     let mut sharp = stability::verlet_step(lambda_max).max(gershgorin_dt);
     if let Some(h) = hybrid {
         // The WLS blocks are not symmetric and their stencil is tighter than the family's: the
-        // hybrid operator's spectral radius (power iteration) bounds Δt too, and (3.8) does not
+        // hybrid operator's spectral radius (Arnoldi) bounds Δt too, and (3.8) does not
         // cover it.
         let radius =
             stability::arnoldi_spectral_radius(n * D, HYBRID_KRYLOV_DIMENSION, |v, out| {
