@@ -334,7 +334,7 @@ where
         for b in (bonds.start..blocked).step_by(LANES) {
             let nb: &[u32; LANES] = neighbors[b..b + LANES].try_into().expect("4 lanes");
             let ln: &[f64; LANES] = lengths[b..b + LANES].try_into().expect("4 lanes");
-            let (d, vol, r2) = lane_offsets(y_i, nb, positions, volume);
+            let (d, vol, r2) = lane_offsets::<D, LANES>(y_i, nb, positions, volume);
             let st: [u8; LANES] = state[b - first_bond..b - first_bond + LANES]
                 .try_into()
                 .expect("4 lanes");
