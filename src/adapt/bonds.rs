@@ -4,13 +4,15 @@
 
 use crate::discretization::Families;
 
-/// The bond data a check reads, and whether the CPU runs its lanes 4-wide.
+/// The bond data a check reads, and whether the CPU runs its lanes 4- or 8-wide.
 pub struct BondView<'a, const D: usize> {
     reference: &'a [[f64; D]],
     positions: &'a [[f64; D]],
     pub families: &'a Families,
     #[cfg(target_arch = "x86_64")]
     avx2: bool,
+    #[cfg(target_arch = "x86_64")]
+    avx512: bool,
 }
 
 impl<'a, const D: usize> BondView<'a, D> {
@@ -25,6 +27,9 @@ impl<'a, const D: usize> BondView<'a, D> {
             families,
             #[cfg(target_arch = "x86_64")]
             avx2: std::arch::is_x86_feature_detected!("avx2"),
+            #[cfg(target_arch = "x86_64")]
+            avx512: std::arch::is_x86_feature_detected!("avx512f")
+                && std::arch::is_x86_feature_detected!("avx512vl"),
         }
     }
 
@@ -32,12 +37,31 @@ impl<'a, const D: usize> BondView<'a, D> {
     #[inline(always)]
     pub fn least(&self, i: usize, neighbors: &[u32], g: impl Fn(f64, f64) -> f64) -> f64 {
         #[cfg(target_arch = "x86_64")]
+        if self.avx512 {
+            // SAFETY: the CPU supports AVX-512 F/VL (detected in `new`).
+            return unsafe { least_avx512(i, neighbors, self.reference, self.positions, g) };
+        }
+        #[cfg(target_arch = "x86_64")]
         if self.avx2 {
             // SAFETY: the CPU supports AVX2 (detected in `new`).
             return unsafe { least_avx2(i, neighbors, self.reference, self.positions, g) };
         }
-        least_portable(i, neighbors, self.reference, self.positions, g)
+        least_portable::<D, 4>(i, neighbors, self.reference, self.positions, g)
     }
+}
+
+/// `least_portable` with 8 lanes compiled for AVX-512. A minimum does not depend on the
+/// order its values are compared in, so every build returns the same bits.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl")]
+fn least_avx512<const D: usize>(
+    i: usize,
+    neighbors: &[u32],
+    reference: &[[f64; D]],
+    positions: &[[f64; D]],
+    g: impl Fn(f64, f64) -> f64,
+) -> f64 {
+    least_portable::<D, 8>(i, neighbors, reference, positions, g)
 }
 
 /// `least_portable` compiled for AVX2 (4-wide lanes, no FMA: bit-identical results).
@@ -50,20 +74,19 @@ fn least_avx2<const D: usize>(
     positions: &[[f64; D]],
     g: impl Fn(f64, f64) -> f64,
 ) -> f64 {
-    least_portable(i, neighbors, reference, positions, g)
+    least_portable::<D, 4>(i, neighbors, reference, positions, g)
 }
 
 /// Minimum of g over the bonds in `LANES` independent lanes (a min reduction does not
 /// vectorize otherwise); NaN values are ignored, as by `f64::min`.
 #[inline(always)]
-fn least_portable<const D: usize>(
+fn least_portable<const D: usize, const LANES: usize>(
     i: usize,
     neighbors: &[u32],
     reference: &[[f64; D]],
     positions: &[[f64; D]],
     g: impl Fn(f64, f64) -> f64,
 ) -> f64 {
-    const LANES: usize = 4;
     let mut lanes = [f64::INFINITY; LANES];
     let chunks = neighbors.chunks_exact(LANES);
     for &j in chunks.remainder() {
@@ -107,4 +130,54 @@ pub fn bond_squares<const D: usize>(
         );
         (r2 + dy * dy, l2 + dx * dx)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::discretization::grid::Lattice;
+    use crate::scene::Solid;
+
+    /// Every build (portable 4 lanes, AVX2, AVX-512 8 lanes) returns the plain minimum over
+    /// the row, on rows whose lengths are not multiples of the lane count.
+    #[test]
+    fn least_margin_is_the_rows_minimum_in_every_build() {
+        let cube = Solid::Box {
+            min: vec![0.0; 3],
+            max: vec![7.0; 3],
+        };
+        let lattice = Lattice::<3>::build(&cube, 1.0, [-0.2, 0.2], 3);
+        let families = Families::build(&lattice.positions, 2.6);
+        let positions: Vec<[f64; 3]> = lattice
+            .positions
+            .iter()
+            .map(|x| {
+                [
+                    x[0] * (1.0 + 0.01 * x[1].sin()),
+                    x[1],
+                    x[2] + 1e-3 * x[0] * x[0],
+                ]
+            })
+            .collect();
+        let view = BondView::new(&lattice.positions, &positions, &families);
+        let factor = 1.0 + 0.5 * 0.01;
+        let margin = |r2: f64, l2: f64| critical_margin(factor, r2, l2);
+        for i in 0..lattice.len() {
+            let row = &families.neighbors[families.range(i)];
+            let plain = row
+                .iter()
+                .map(|&j| {
+                    let (r2, l2) = bond_squares(i, j as usize, &lattice.positions, &positions);
+                    margin(r2, l2)
+                })
+                .fold(f64::INFINITY, f64::min);
+            assert_eq!(view.least(i, row, margin), plain);
+            let portable = |n: usize| match n {
+                4 => least_portable::<3, 4>(i, row, &lattice.positions, &positions, margin),
+                _ => least_portable::<3, 8>(i, row, &lattice.positions, &positions, margin),
+            };
+            assert_eq!(portable(4), plain);
+            assert_eq!(portable(8), plain);
+        }
+    }
 }

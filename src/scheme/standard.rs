@@ -357,7 +357,10 @@ fn pmb_rows<const D: usize, M: RowMask>(
     volume: impl Fn(usize) -> f64 + Sync,
 ) -> u64 {
     #[cfg(target_arch = "x86_64")]
-    let (avx512, avx2) = (avx512_detected(), std::arch::is_x86_feature_detected!("avx2"));
+    let (avx512, avx2) = (
+        avx512_detected(),
+        std::arch::is_x86_feature_detected!("avx2"),
+    );
     let kernel = |first: usize, terms: &mut [NodeTerms<D>], state: &mut [u8]| -> u64 {
         let block = Rows { first, ..*rows };
         #[cfg(target_arch = "x86_64")]
