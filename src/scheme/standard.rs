@@ -762,4 +762,88 @@ mod tests {
             assert_eq!(wide, portable_wide);
         }
     }
+
+    /// The linearized operator is the force loop's derivative: −ρ L u = f(X + u) for a small
+    /// displacement u (to its O(|u|/Δx) nonlinearity), with broken bonds skipped by both; and
+    /// its rows equal a plain bond-by-bond sum to rounding.
+    #[test]
+    fn linearized_operator_is_the_force_loops_derivative() {
+        let cube = Solid::Box {
+            min: vec![0.0; 3],
+            max: vec![8.0; 3],
+        };
+        let lattice = Lattice::<3>::build(&cube, 1.0, [-0.2, 0.2], 11);
+        let families = Families::build(&lattice.positions, 3.0);
+        let law = PmbLaw {
+            micromodulus: 2.5,
+            critical_stretch: 0.5,
+            influence: Influence::Linear,
+            horizon: 3.0,
+        };
+        let quadrature = Quadrature {
+            spacing: 1.0,
+            horizon: 3.0,
+            volume_correction: true,
+        };
+        let scheme = Standard {
+            reference: &lattice.positions,
+            volumes: &lattice.volumes,
+            uniform_volume: None,
+            families: &families,
+            law: &law,
+            quadrature: &quadrature,
+        };
+        let density = 3.0;
+        // Every seventh bond broken (in both directions' rows alike: only the row's own
+        // state matters to either loop).
+        let intact: Vec<u8> = (0..families.bond_count())
+            .map(|b| u8::from(b % 7 != 0))
+            .collect();
+        let amplitude = 1e-7;
+        let u: Vec<[f64; 3]> = lattice
+            .positions
+            .iter()
+            .map(|x| {
+                [
+                    amplitude * (0.7 * x[1]).sin(),
+                    amplitude * (0.3 * x[0] + 0.5 * x[2]).cos(),
+                    amplitude * 0.1 * x[0] * x[1],
+                ]
+            })
+            .collect();
+        let coefficients = scheme.linearized_coefficients(density);
+        let mut linear = vec![[0.0; 3]; lattice.len()];
+        scheme.apply_linearized(&coefficients, &intact, &u, &mut linear);
+        let positions: Vec<[f64; 3]> = lattice
+            .positions
+            .iter()
+            .zip(&u)
+            .map(|(x, u)| std::array::from_fn(|k| x[k] + u[k]))
+            .collect();
+        let mut state = intact.clone();
+        let mut terms = vec![NodeTerms::default(); lattice.len()];
+        assert_eq!(scheme.forces(&positions, &mut state, &mut terms), 0);
+        let largest = terms
+            .iter()
+            .flat_map(|t| t.force.map(f64::abs))
+            .fold(0.0, f64::max);
+        assert!(largest > 0.0);
+        for (i, t) in terms.iter().enumerate() {
+            // The plain sum, one bond after another.
+            let mut plain = [0.0; 3];
+            for b in families.range(i) {
+                let j = families.neighbors[b] as usize;
+                let xi: [f64; 3] =
+                    std::array::from_fn(|k| lattice.positions[j][k] - lattice.positions[i][k]);
+                let proj: f64 = (0..3).map(|k| xi[k] * (u[i][k] - u[j][k])).sum();
+                for k in 0..3 {
+                    plain[k] += coefficients[b] * f64::from(intact[b]) * proj * xi[k];
+                }
+            }
+            for k in 0..3 {
+                assert!((-density * linear[i][k] - t.force[k]).abs() <= 1e-5 * largest);
+                assert!((linear[i][k] - plain[k]).abs() <= 1e-12 * largest / density);
+            }
+        }
+    }
 }
