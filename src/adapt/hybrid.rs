@@ -92,6 +92,8 @@ pub struct Hybrid<const D: usize> {
     /// Checks so far that visited every node (epochs of the motion bound) and that were
     /// filtered by it.
     pub full_checks: u64,
+    /// Slacks an epoch kept (less the motion bound) instead of visiting the node's bonds.
+    pub reused_slacks: u64,
     pub filtered_checks: u64,
     /// Tests: every check visits every node (no motion filter), the reference behaviour.
     pub exhaustive: bool,
@@ -190,6 +192,7 @@ impl<const D: usize> Hybrid<D> {
             events: Vec::new(),
             checked_bonds: 0,
             full_checks: 0,
+            reused_slacks: 0,
             filtered_checks: 0,
             exhaustive: false,
             damping: InterfaceDamping::new(spec.interface_damping, spec.interface_band, families),
@@ -296,7 +299,11 @@ impl<const D: usize> Hybrid<D> {
             return Vec::new();
         };
         let epoch = self.exhaustive || self.epoch_due || motion.needs_epoch(factor);
-        if !epoch {
+        // An epoch called for by the flagged share (not by χ, a rebuild or the exhaustive
+        // mode) may keep the slacks of quiet nodes: it needs the bounds of the motion since
+        // the last epoch too.
+        let reuse = epoch && !self.exhaustive && !motion.needs_epoch(factor);
+        if !epoch || reuse {
             motion.update(positions);
         }
         let this = &*self;
@@ -309,26 +316,26 @@ impl<const D: usize> Hybrid<D> {
             let sqrt_f = factor.sqrt();
             let shortest = this.shortest_bond;
             let tolerance = 1e-9 * families.lengths.first().copied().unwrap_or(0.0);
-            motion
-                .slack
-                .par_iter_mut()
-                .enumerate()
-                .with_min_len(1024)
-                .for_each(|(i, s)| {
-                    *s = if this.in_check[i] && this.mask[i] == SchemeClass::Wls {
-                        // √f·l − r = l (√f − r/l) ≥ l_min (√f − max r/l) while that is ≥ 0:
-                        // one division per bond and one square root per node.
-                        let least = this.node_least(i, &bonds, |r2, l2| -(r2 / l2));
-                        match sqrt_f - (-least).sqrt() {
-                            // No checked bond (least = +∞ gives NaN here).
-                            _ if least == f64::INFINITY => f64::INFINITY,
-                            stretch if stretch >= 0.0 => stretch * shortest,
-                            _ => f64::NEG_INFINITY,
-                        }
-                    } else {
-                        f64::INFINITY
-                    };
-                });
+            let recomputed_bonds = std::sync::atomic::AtomicU64::new(0);
+            let reused = motion.refresh_slacks(
+                reuse,
+                |i| this.in_check[i] && this.mask[i] == SchemeClass::Wls,
+                |i| {
+                    recomputed_bonds.fetch_add(
+                        this.bond_count(i, families),
+                        std::sync::atomic::Ordering::Relaxed,
+                    );
+                    // √f·l − r = l (√f − r/l) ≥ l_min (√f − max r/l) while that is ≥ 0:
+                    // one division per bond and one square root per node.
+                    let least = this.node_least(i, &bonds, |r2, l2| -(r2 / l2));
+                    match sqrt_f - (-least).sqrt() {
+                        // No checked bond (least = +∞ gives NaN here).
+                        _ if least == f64::INFINITY => f64::INFINITY,
+                        stretch if stretch >= 0.0 => stretch * shortest,
+                        _ => f64::NEG_INFINITY,
+                    }
+                },
+            );
             let slack = &motion.slack;
             let exhausted = |i: &u32| slack[*i as usize] <= tolerance && node_critical(i);
             // Listed (allocated) only when something is critical.
@@ -350,7 +357,8 @@ impl<const D: usize> Hybrid<D> {
             }
             let tracked = &self.tracked;
             motion.start_epoch(positions, factor, |k| tracked[k]);
-            self.checked_bonds += self.check_bonds;
+            self.checked_bonds += recomputed_bonds.into_inner();
+            self.reused_slacks += reused as u64;
             self.full_checks += 1;
             self.epoch_due = false;
             critical

@@ -125,8 +125,9 @@ pub fn print_summary(s: &RunSummary) {
     ) {
         println!(
             "switching check: {full} full (epoch) checks, {filtered} filtered, {bonds:.4e} bonds \
-             checked exactly ({:.0} per check), Ω_s {:.2} %",
+             checked exactly ({:.0} per check), {} slacks kept by epochs, Ω_s {:.2} %",
             bonds / (full + filtered).max(1.0),
+            last("hybrid/reused_slacks").unwrap_or(0.0),
             100.0 * last("hybrid/omega_s_fraction").unwrap_or(0.0)
         );
     }

@@ -95,7 +95,7 @@ impl<const D: usize> WlsRows<D> {
 
     /// The linearized operator per unit mass on the `live` rows, −K u / ρ (the sign of the
     /// standard scheme's `apply_linearized`), other rows untouched; for stable-step estimates
-    /// (rows in parallel; allocates the row values: setup work).
+    /// (in parallel over the nodes, writing each row's node in place).
     pub fn apply_linearized(
         &self,
         u: &[[f64; D]],
@@ -103,18 +103,16 @@ impl<const D: usize> WlsRows<D> {
         out: &mut [[f64; D]],
         live: impl Fn(usize) -> bool + Sync,
     ) {
-        let op = &self.op;
-        let rows: Vec<Option<[f64; D]>> = op
-            .rows
-            .par_iter()
+        let (op, row_of) = (&self.op, &self.row_of);
+        out.par_iter_mut()
             .enumerate()
-            .map(|(r, &i)| live(i as usize).then(|| op.apply_row(r, u)))
-            .collect();
-        for (&i, force) in op.rows.iter().zip(rows) {
-            if let Some(force) = force {
-                out[i as usize] = force.map(|f| -f / density);
-            }
-        }
+            .with_min_len(1024)
+            .for_each(|(i, o)| {
+                let r = row_of[i];
+                if r != u32::MAX && live(i) {
+                    *o = op.apply_row(r as usize, u).map(|f| -f / density);
+                }
+            });
     }
 }
 

@@ -742,6 +742,7 @@ impl<const D: usize> DynamicSimulation<D> {
         scalars.push(("hybrid/violations".into(), violations));
         scalars.push(("hybrid/checked_bonds".into(), h.checked_bonds as f64));
         scalars.push(("hybrid/full_checks".into(), h.full_checks as f64));
+        scalars.push(("hybrid/reused_slacks".into(), h.reused_slacks as f64));
         scalars.push(("hybrid/filtered_checks".into(), h.filtered_checks as f64));
         (vec![SchemeClass::field(h.mask(), false)], events)
     }
