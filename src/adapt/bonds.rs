@@ -50,32 +50,38 @@ impl<'a, const D: usize> BondView<'a, D> {
     }
 }
 
-/// `least_portable` with 8 lanes compiled for AVX-512. A minimum does not depend on the
-/// order its values are compared in, so every build returns the same bits.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl")]
-fn least_avx512<const D: usize>(
-    i: usize,
-    neighbors: &[u32],
-    reference: &[[f64; D]],
-    positions: &[[f64; D]],
-    g: impl Fn(f64, f64) -> f64,
-) -> f64 {
-    least_portable::<D, 8>(i, neighbors, reference, positions, g)
+/// A build of `least_portable` with `$lanes` lanes, compiled for `$features`.
+macro_rules! least_build {
+    ($(#[$doc:meta])* $name:ident, $features:literal, $lanes:literal) => {
+        $(#[$doc])*
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        fn $name<const D: usize>(
+            i: usize,
+            neighbors: &[u32],
+            reference: &[[f64; D]],
+            positions: &[[f64; D]],
+            g: impl Fn(f64, f64) -> f64,
+        ) -> f64 {
+            least_portable::<D, $lanes>(i, neighbors, reference, positions, g)
+        }
+    };
 }
 
-/// `least_portable` compiled for AVX2 (4-wide lanes, no FMA: bit-identical results).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2")]
-fn least_avx2<const D: usize>(
-    i: usize,
-    neighbors: &[u32],
-    reference: &[[f64; D]],
-    positions: &[[f64; D]],
-    g: impl Fn(f64, f64) -> f64,
-) -> f64 {
-    least_portable::<D, 4>(i, neighbors, reference, positions, g)
-}
+least_build!(
+    /// `least_portable` with 8 lanes compiled for AVX-512. A minimum does not depend on the
+    /// order its values are compared in, so every build returns the same bits.
+    least_avx512,
+    "avx512f,avx512vl",
+    8
+);
+
+least_build!(
+    /// `least_portable` compiled for AVX2 (4-wide lanes, no FMA: bit-identical results).
+    least_avx2,
+    "avx,avx2",
+    4
+);
 
 /// Minimum of g over the bonds in `LANES` independent lanes (a min reduction does not
 /// vectorize otherwise); NaN values are ignored, as by `f64::min`.

@@ -427,38 +427,44 @@ fn rows_portable<const D: usize, const N: usize, M: RowMask>(
     broken
 }
 
-/// `rows_portable` compiled for AVX2, where the lane loops become 4-wide. No FMA is enabled,
-/// so the results are bit-identical to the portable code.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2")]
-fn rows_avx2<const D: usize, M: RowMask>(
-    rows: &Rows<D, M>,
-    terms: &mut [NodeTerms<D>],
-    state: &mut [u8],
-    weight: &impl Fn(f64) -> f64,
-    volume: &impl Fn(usize) -> f64,
-) -> u64 {
-    rows_portable::<D, LANES, M>(rows, terms, state, weight, volume)
+/// A build of `rows_portable` with `$lanes` bonds together, compiled for `$features`.
+macro_rules! rows_build {
+    ($(#[$doc:meta])* $name:ident, $features:literal, $lanes:expr) => {
+        $(#[$doc])*
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        fn $name<const D: usize, M: RowMask>(
+            rows: &Rows<D, M>,
+            terms: &mut [NodeTerms<D>],
+            state: &mut [u8],
+            weight: &impl Fn(f64) -> f64,
+            volume: &impl Fn(usize) -> f64,
+        ) -> u64 {
+            rows_portable::<D, { $lanes }, M>(rows, terms, state, weight, volume)
+        }
+    };
 }
 
-/// `rows_portable` with `WIDE_LANES` bonds together, compiled for AVX-512, where the lane
-/// loops become 8-wide (one square root and one division instruction per 8 bonds). No FMA
-/// is contracted, so the results are bit-identical to the portable code at 8 lanes; against
-/// the 4-lane builds they differ in the last bits (the lanes' partial sums are added in
-/// another order), so a machine with AVX-512 and one without agree to rounding, not to the
-/// bit. Measured on this machine's Zen 4 (force loop alone, 3D, 122 bonds per node): 1.16×
-/// the AVX2 build.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
-fn rows_avx512<const D: usize, M: RowMask>(
-    rows: &Rows<D, M>,
-    terms: &mut [NodeTerms<D>],
-    state: &mut [u8],
-    weight: &impl Fn(f64) -> f64,
-    volume: &impl Fn(usize) -> f64,
-) -> u64 {
-    rows_portable::<D, WIDE_LANES, M>(rows, terms, state, weight, volume)
-}
+rows_build!(
+    /// `rows_portable` compiled for AVX2, where the lane loops become 4-wide. No FMA is
+    /// enabled, so the results are bit-identical to the portable code.
+    rows_avx2,
+    "avx,avx2",
+    LANES
+);
+
+rows_build!(
+    /// `rows_portable` with `WIDE_LANES` bonds together, compiled for AVX-512, where the lane
+    /// loops become 8-wide (one square root and one division instruction per 8 bonds). No
+    /// FMA is contracted, so the results are bit-identical to the portable code at 8 lanes;
+    /// against the 4-lane builds they differ in the last bits (the lanes' partial sums are
+    /// added in another order), so a machine with AVX-512 and one without agree to rounding,
+    /// not to the bit. Measured on a Zen 4 (force loop alone, 3D, 122 bonds per node): 1.16×
+    /// the AVX2 build.
+    rows_avx512,
+    "avx512f,avx512vl,avx512dq",
+    WIDE_LANES
+);
 
 /// Whether the AVX-512 force loop can run here.
 #[cfg(target_arch = "x86_64")]
@@ -627,16 +633,23 @@ mod tests {
     use crate::discretization::grid::Lattice;
     use crate::scene::Solid;
 
+    /// A unit-spaced cube lattice of side `side`, perturbed by up to 0.2 spacings (seeded),
+    /// with families of horizon 3.
+    fn perturbed_cube(side: f64, seed: u64) -> (Lattice<3>, Families) {
+        let cube = Solid::Box {
+            min: vec![0.0; 3],
+            max: vec![side; 3],
+        };
+        let lattice = Lattice::<3>::build(&cube, 1.0, [-0.2, 0.2], seed);
+        let families = Families::build(&lattice.positions, 3.0);
+        (lattice, families)
+    }
+
     /// The AVX2 build of the force loop, the portable one and any thread count give the same
     /// bits, breaking included.
     #[test]
     fn force_loop_is_bit_identical_across_builds_and_threads() {
-        let cube = Solid::Box {
-            min: vec![0.0; 3],
-            max: vec![12.0; 3],
-        };
-        let lattice = Lattice::<3>::build(&cube, 1.0, [-0.2, 0.2], 5);
-        let families = Families::build(&lattice.positions, 3.0);
+        let (lattice, families) = perturbed_cube(12.0, 5);
         let law = PmbLaw {
             micromodulus: 1.0,
             critical_stretch: 0.01,
@@ -768,12 +781,7 @@ mod tests {
     /// its rows equal a plain bond-by-bond sum to rounding.
     #[test]
     fn linearized_operator_is_the_force_loops_derivative() {
-        let cube = Solid::Box {
-            min: vec![0.0; 3],
-            max: vec![8.0; 3],
-        };
-        let lattice = Lattice::<3>::build(&cube, 1.0, [-0.2, 0.2], 11);
-        let families = Families::build(&lattice.positions, 3.0);
+        let (lattice, families) = perturbed_cube(8.0, 11);
         let law = PmbLaw {
             micromodulus: 2.5,
             critical_stretch: 0.5,
