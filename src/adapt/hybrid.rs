@@ -51,11 +51,15 @@ impl std::fmt::Display for SwitchEvent {
     }
 }
 
-/// An epoch (every slack refreshed) follows a filtered check that flagged more than
-/// 1/EPOCH_SHARE of the checked nodes. Measured on Kalthoff–Winkler medium-fast at 0.7 of its
-/// stable step (docs/results.md): 2 → 4 → 8 → 16 gave 2.0–2.3, 1.55–1.61, 1.46–1.63,
-/// 1.52–1.56 s of switching; 8 visits the fewest bonds.
-const EPOCH_SHARE: usize = 8;
+/// An epoch (every slack refreshed, or kept less the motion bound) follows a filtered check
+/// that flagged more than 1/EPOCH_SHARE of the checked nodes. Measured on Kalthoff–Winkler
+/// medium-fast at 0.7 of its stable step (docs/results.md), before epochs kept slacks: 2 → 4 →
+/// 8 → 16 gave 2.0–2.3, 1.55–1.61, 1.46–1.63, 1.52–1.56 s of switching. Since epochs keep
+/// quiet nodes' slacks they are cheaper, and more frequent ones pay (session 29, the paper
+/// grid's `hybrid` at 0.7 of its step, bonds visited and switching time): 4: 6.28·10⁹, 9.3 s;
+/// 8: 5.67·10⁹, 9.1–9.5 s; 16: 5.46·10⁹, 8.5–8.7 s; 32: 5.48·10⁹, 10.2 s; 64: 5.49·10⁹,
+/// 9.2 s; on `medium-fast` 8: 2.12·10⁸, 0.85–0.90 s; 16: 1.99·10⁸, 0.82–0.84 s.
+const EPOCH_SHARE: usize = 16;
 
 pub struct Hybrid<const D: usize> {
     pub spec: HybridSpec,
