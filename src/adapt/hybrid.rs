@@ -320,24 +320,20 @@ impl<const D: usize> Hybrid<D> {
             let sqrt_f = factor.sqrt();
             let shortest = this.shortest_bond;
             let tolerance = 1e-9 * families.lengths.first().copied().unwrap_or(0.0);
-            let recomputed_bonds = std::sync::atomic::AtomicU64::new(0);
-            let reused = motion.refresh_slacks(
+            let (reused, recomputed_bonds) = motion.refresh_slacks(
                 reuse,
                 |i| this.in_check[i] && this.mask[i] == SchemeClass::Wls,
                 |i| {
-                    recomputed_bonds.fetch_add(
-                        this.bond_count(i, families),
-                        std::sync::atomic::Ordering::Relaxed,
-                    );
                     // √f·l − r = l (√f − r/l) ≥ l_min (√f − max r/l) while that is ≥ 0:
                     // one division per bond and one square root per node.
                     let least = this.node_least(i, &bonds, |r2, l2| -(r2 / l2));
-                    match sqrt_f - (-least).sqrt() {
+                    let slack = match sqrt_f - (-least).sqrt() {
                         // No checked bond (least = +∞ gives NaN here).
                         _ if least == f64::INFINITY => f64::INFINITY,
                         stretch if stretch >= 0.0 => stretch * shortest,
                         _ => f64::NEG_INFINITY,
-                    }
+                    };
+                    (slack, this.bond_count(i, families))
                 },
             );
             let slack = &motion.slack;
@@ -361,8 +357,8 @@ impl<const D: usize> Hybrid<D> {
             }
             let tracked = &self.tracked;
             motion.start_epoch(positions, factor, |k| tracked[k]);
-            self.checked_bonds += recomputed_bonds.into_inner();
-            self.reused_slacks += reused as u64;
+            self.checked_bonds += recomputed_bonds;
+            self.reused_slacks += reused;
             self.full_checks += 1;
             self.epoch_due = false;
             critical

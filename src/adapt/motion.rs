@@ -160,14 +160,15 @@ impl<const D: usize> MotionBound<D> {
     /// its slack keeps μ_i − B_c without visiting its bonds. That is rigorous: each bond's
     /// stretch slack √f − r/l shrank by at most B_c/l ≤ B_c/l_min since the last epoch, so
     /// l_min · min_j (√f − r_ij/l_ij) ≥ μ_i − B_c now. The reused slack only shrinks, so a
-    /// node is revisited once its accumulated bounds exceed the share. Returns the number
-    /// of slacks kept. Call `start_epoch` next.
+    /// node is revisited once its accumulated bounds exceed the share. `exact` returns the
+    /// slack and the work it took (bonds visited); returns the slacks kept and the work summed.
+    /// Call `start_epoch` next.
     pub fn refresh_slacks(
         &mut self,
         reuse: bool,
         checked: impl Fn(usize) -> bool + Sync,
-        exact: impl Fn(usize) -> f64 + Sync,
-    ) -> usize {
+        exact: impl Fn(usize) -> (f64, u64) + Sync,
+    ) -> (u64, u64) {
         let (bound, cell_of) = (&self.bound, &self.cell_of);
         let margin = 1e-12 * self.cell_size;
         self.slack
@@ -177,19 +178,20 @@ impl<const D: usize> MotionBound<D> {
             .map(|(i, s)| {
                 if !checked(i) {
                     *s = f64::INFINITY;
-                    return 0;
+                    return (0, 0);
                 }
                 let b = bound[cell_of[i] as usize] + margin;
                 // A NaN bound or a forced slack (−∞) fails the test.
                 if reuse && b <= REUSE_SHARE * *s && s.is_finite() {
                     *s -= b;
-                    1
+                    (1, 0)
                 } else {
-                    *s = exact(i);
-                    0
+                    let (slack, work) = exact(i);
+                    *s = slack;
+                    (0, work)
                 }
             })
-            .sum()
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
     }
 
     /// Forces node i's exact check until the next epoch (its checked bonds changed).

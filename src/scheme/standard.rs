@@ -459,8 +459,9 @@ rows_build!(
     /// FMA is contracted, so the results are bit-identical to the portable code at 8 lanes;
     /// against the 4-lane builds they differ in the last bits (the lanes' partial sums are
     /// added in another order), so a machine with AVX-512 and one without agree to rounding,
-    /// not to the bit. Measured on a Zen 4 (force loop alone, 3D, 122 bonds per node): 1.16×
-    /// the AVX2 build.
+    /// not to the bit. Measured on a Zen 4: the force loop alone 1.16× the AVX2 build (3D,
+    /// 122 bonds per node); a whole `pmb-block-3d` run, setup included, 1.18×
+    /// (docs/results.md).
     rows_avx512,
     "avx512f,avx512vl,avx512dq",
     WIDE_LANES
@@ -777,8 +778,10 @@ mod tests {
     }
 
     /// The linearized operator is the force loop's derivative: −ρ L u = f(X + u) for a small
-    /// displacement u (to its O(|u|/Δx) nonlinearity), with broken bonds skipped by both; and
-    /// its rows equal a plain bond-by-bond sum to rounding.
+    /// displacement u, with broken bonds skipped by both; and its rows equal a plain
+    /// bond-by-bond sum to rounding. The tolerance comes from the neglected terms: they are
+    /// O(|u_j − u_i|/‖ξ‖) relative to a bond's linear term, at most about 1e-6 here (|u| ≤
+    /// 6.4·10⁻⁷ on a unit lattice), so 1e-5 of the largest force leaves a factor 10.
     #[test]
     fn linearized_operator_is_the_force_loops_derivative() {
         let (lattice, families) = perturbed_cube(8.0, 11);
