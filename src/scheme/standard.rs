@@ -12,6 +12,9 @@ use crate::model::pmb::Influence;
 use crate::model::pmb::{PmbLaw, influence};
 use crate::scheme::{RowMask, ScalarOperator};
 
+#[cfg(target_arch = "x86_64")]
+mod avx512;
+
 /// What the force loop produces per node.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C)]
@@ -120,6 +123,21 @@ impl<const D: usize> Standard<'_, D> {
             s0: law.critical_stretch,
             skip,
         };
+        #[cfg(target_arch = "x86_64")]
+        if let Some(v) = self.uniform_volume
+            && D == 3
+            && avx512::available()
+        {
+            return avx512::forces(
+                &rows,
+                intact,
+                terms,
+                BondWeight::of(law, quadrature),
+                v,
+                law.influence == Influence::Linear,
+                quadrature.volume_correction,
+            );
+        }
         self.with_bond_law(GatherLoop {
             rows: &rows,
             intact,
@@ -131,30 +149,21 @@ impl<const D: usize> Standard<'_, D> {
     /// equal) and per-node volume V'_j: one monomorphized loop per (influence, β, volume)
     /// combination, so no branch on them inside.
     pub(crate) fn with_bond_law<L: BondLoop>(&self, bond_loop: L) -> u64 {
-        let (law, quadrature) = (self.law, self.quadrature);
         let volumes = self.volumes;
-        let c = law.micromodulus;
-        let (h, reach, inv_dx) = (
-            law.horizon,
-            quadrature.horizon + 0.5 * quadrature.spacing,
-            1.0 / quadrature.spacing,
-        );
-        let beta = move |l: f64| ((reach - l) * inv_dx).clamp(0.0, 1.0);
+        let weight = BondWeight::of(self.law, self.quadrature);
         macro_rules! with_volume {
-            ($weight:expr) => {
+            ($linear:literal, $beta:literal) => {
                 match self.uniform_volume {
-                    Some(v) => bond_loop.run(move |l| $weight(l) * v, |_| 1.0),
-                    None => bond_loop.run($weight, |j| volumes[j]),
+                    Some(v) => bond_loop.run(move |l| weight.at::<$linear, $beta>(l) * v, |_| 1.0),
+                    None => bond_loop.run(move |l| weight.at::<$linear, $beta>(l), |j| volumes[j]),
                 }
             };
         }
-        match (law.influence, quadrature.volume_correction) {
-            (Influence::Constant, true) => with_volume!(move |l: f64| c * beta(l)),
-            (Influence::Constant, false) => with_volume!(move |_l: f64| c),
-            (Influence::Linear, true) => {
-                with_volume!(move |l: f64| c * (1.0 - l / h).max(0.0) * beta(l))
-            }
-            (Influence::Linear, false) => with_volume!(move |l: f64| c * (1.0 - l / h).max(0.0)),
+        match (self.law.influence, self.quadrature.volume_correction) {
+            (Influence::Constant, true) => with_volume!(false, true),
+            (Influence::Constant, false) => with_volume!(false, false),
+            (Influence::Linear, true) => with_volume!(true, true),
+            (Influence::Linear, false) => with_volume!(true, false),
         }
     }
 
@@ -316,6 +325,43 @@ pub fn diffusion_operator<const D: usize>(
         })
         .collect();
     ScalarOperator::from_rows(rows, blocks)
+}
+
+/// The bond weight ω(‖ξ‖) c β(‖ξ‖) of (2.33) in the sum (3.1), without the volume: the
+/// influence ω (constant, or linear 1 − ‖ξ‖/δ) and the partial-volume factor β (3.2) chosen
+/// by the const parameters, so each combination is its own branch-free function.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct BondWeight {
+    c: f64,
+    horizon: f64,
+    /// δ + Δx/2, where β reaches 0.
+    reach: f64,
+    inv_dx: f64,
+}
+
+impl BondWeight {
+    fn of(law: &PmbLaw, quadrature: &Quadrature) -> BondWeight {
+        BondWeight {
+            c: law.micromodulus,
+            horizon: law.horizon,
+            reach: quadrature.horizon + 0.5 * quadrature.spacing,
+            inv_dx: 1.0 / quadrature.spacing,
+        }
+    }
+
+    #[inline(always)]
+    fn at<const LINEAR: bool, const BETA: bool>(&self, l: f64) -> f64 {
+        let w = if LINEAR {
+            self.c * (1.0 - l / self.horizon).max(0.0)
+        } else {
+            self.c
+        };
+        if BETA {
+            w * ((self.reach - l) * self.inv_dx).clamp(0.0, 1.0)
+        } else {
+            w
+        }
+    }
 }
 
 /// Bond state μ: 1 intact, 0 broken (2.34). One byte per directed bond.
@@ -552,13 +598,7 @@ fn pmb_row<const D: usize, const N: usize>(
             w_lanes[l] += scale[l] * extension * r;
         }
         if breaks {
-            for l in 0..N {
-                if st[l] != 0 && !keep[l] {
-                    st[l] = 0;
-                    broken += 1;
-                    lost += quadrature.beta(ln[l]) * vol[l];
-                }
-            }
+            broken += break_lanes(st, &keep, ln, &vol, quadrature, &mut lost);
         }
         for k in 0..D {
             for l in 0..N {
@@ -571,11 +611,61 @@ fn pmb_row<const D: usize, const N: usize>(
         acc[k] = acc_lanes[k].iter().sum();
     }
     let mut w: f64 = w_lanes.iter().sum();
-    for ((&j, &length), mu) in neighbors[blocked..]
-        .iter()
-        .zip(&lengths[blocked..])
-        .zip(&mut state[blocked..])
-    {
+    pmb_tail(
+        y_i,
+        &neighbors[blocked..],
+        &lengths[blocked..],
+        &mut state[blocked..],
+        positions,
+        s0,
+        quadrature,
+        weight,
+        volume,
+        (&mut acc, &mut w, &mut broken, &mut lost),
+    );
+    (acc, w, broken, lost)
+}
+
+/// Marks the lanes whose bond broke in this pass (intact before, not kept), adds their
+/// β V'_j to `lost` one by one (the damage numerator) and returns how many broke.
+#[inline(never)]
+fn break_lanes<const N: usize>(
+    state: &mut [u8],
+    keep: &[bool; N],
+    lengths: &[f64],
+    volumes: &[f64; N],
+    quadrature: &Quadrature,
+    lost: &mut f64,
+) -> u64 {
+    let mut broken = 0;
+    for l in 0..N {
+        if state[l] != 0 && !keep[l] {
+            state[l] = 0;
+            broken += 1;
+            *lost += quadrature.beta(lengths[l]) * volumes[l];
+        }
+    }
+    broken
+}
+
+/// The bonds of a row left after its blocks of lanes, one by one, added to `sums` (force
+/// density, 4·W_i, bonds broken, Σ β V'_j lost).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn pmb_tail<const D: usize>(
+    y_i: [f64; D],
+    neighbors: &[u32],
+    lengths: &[f64],
+    state: &mut [u8],
+    positions: &[[f64; D]],
+    s0: f64,
+    quadrature: &Quadrature,
+    weight: &impl Fn(f64) -> f64,
+    volume: &impl Fn(usize) -> f64,
+    sums: (&mut [f64; D], &mut f64, &mut u64, &mut f64),
+) {
+    let (acc, w, broken, lost) = sums;
+    for ((&j, &length), mu) in neighbors.iter().zip(lengths).zip(state) {
         if *mu == 0 {
             continue;
         }
@@ -591,17 +681,16 @@ fn pmb_row<const D: usize, const N: usize>(
         let extension = r - length;
         if extension >= s0 * length {
             *mu = 0;
-            broken += 1;
-            lost += quadrature.beta(length) * volume(j);
+            *broken += 1;
+            *lost += quadrature.beta(length) * volume(j);
             continue;
         }
         let scale = weight(length) * volume(j) * extension / (length * r);
-        w += scale * extension * r;
+        *w += scale * extension * r;
         for k in 0..D {
             acc[k] += scale * d[k];
         }
     }
-    (acc, w, broken, lost)
 }
 
 fn split_rows<const D: usize, K>(
@@ -775,6 +864,104 @@ mod tests {
             assert_eq!(b2, b8);
             assert_eq!(wide, portable_wide);
         }
+    }
+
+    /// The hand-written AVX-512 kernel (3D, uniform volumes) gives the portable 8-lane loop's
+    /// bits for every influence and partial-volume choice, with a spacing and volume other
+    /// than 1 (so no product by 1 hides a wrong operand order) and bonds breaking.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn hand_written_kernel_matches_the_portable_loop_for_every_law() {
+        if !avx512::available() {
+            return;
+        }
+        let (lattice, _) = perturbed_cube(9.0, 17);
+        let (dx, v) = (0.7, 0.343);
+        let reference: Vec<[f64; 3]> = lattice
+            .positions
+            .iter()
+            .map(|x| x.map(|c| c * dx))
+            .collect();
+        let families = Families::build(&reference, 3.0 * dx);
+        let positions: Vec<[f64; 3]> = reference
+            .iter()
+            .map(|x| {
+                [
+                    x[0] * (1.0 + 0.003 * x[1]),
+                    x[1] - 0.001 * x[2] * x[2],
+                    x[2],
+                ]
+            })
+            .collect();
+        let mut compared = 0;
+        for influence in [Influence::Constant, Influence::Linear] {
+            for volume_correction in [true, false] {
+                let law = PmbLaw {
+                    micromodulus: 3.7,
+                    critical_stretch: 0.012,
+                    influence,
+                    horizon: 3.0 * dx,
+                };
+                let quadrature = Quadrature {
+                    spacing: dx,
+                    horizon: 3.0 * dx,
+                    volume_correction,
+                };
+                let scheme = Standard {
+                    reference: &reference,
+                    volumes: &lattice.volumes,
+                    uniform_volume: Some(v),
+                    families: &families,
+                    law: &law,
+                    quadrature: &quadrature,
+                };
+                let mut kernel = (
+                    intact_bonds(families.bond_count()),
+                    vec![NodeTerms::default(); reference.len()],
+                );
+                let broken = scheme.forces(&positions, &mut kernel.0, &mut kernel.1);
+                assert!(
+                    broken > 0 && broken < families.bond_count() as u64 / 2,
+                    "{broken} of {}",
+                    families.bond_count()
+                );
+                let rows = Rows {
+                    positions: &positions,
+                    families: &families,
+                    quadrature: &quadrature,
+                    first: 0,
+                    s0: law.critical_stretch,
+                    skip: None::<&[u8]>,
+                };
+                let weight = BondWeight::of(&law, &quadrature);
+                let mut portable = (
+                    intact_bonds(families.bond_count()),
+                    vec![NodeTerms::default(); reference.len()],
+                );
+                let unit = |_j: usize| 1.0;
+                macro_rules! portable {
+                    ($linear:literal, $beta:literal) => {
+                        rows_portable::<3, WIDE_LANES, u8>(
+                            &rows,
+                            &mut portable.1,
+                            &mut portable.0,
+                            &|l| weight.at::<$linear, $beta>(l) * v,
+                            &unit,
+                        )
+                    };
+                }
+                let portable_broken = match (influence, volume_correction) {
+                    (Influence::Constant, true) => portable!(false, true),
+                    (Influence::Constant, false) => portable!(false, false),
+                    (Influence::Linear, true) => portable!(true, true),
+                    (Influence::Linear, false) => portable!(true, false),
+                };
+                assert_eq!(portable_broken, broken);
+                assert_eq!(portable, kernel, "{influence:?}, β {volume_correction}");
+                compared += 1;
+            }
+        }
+        assert_eq!(compared, 4);
     }
 
     /// The linearized operator is the force loop's derivative: −ρ L u = f(X + u) for a small
