@@ -4,6 +4,29 @@
 
 use crate::discretization::Families;
 
+#[cfg(target_arch = "x86_64")]
+mod avx512;
+
+/// What a scan minimizes over a node's bonds, from r² and l² (a bond's squared current and
+/// reference lengths).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Measure {
+    /// f l² − r² (`critical_margin`): ≤ 0 where the bond is critical at the factor f.
+    Margin(f64),
+    /// −r²/l²: the least is minus the largest squared stretch ratio.
+    NegatedSquaredRatio,
+}
+
+impl Measure {
+    #[inline(always)]
+    pub fn of(self, r2: f64, l2: f64) -> f64 {
+        match self {
+            Measure::Margin(factor) => critical_margin(factor, r2, l2),
+            Measure::NegatedSquaredRatio => -(r2 / l2),
+        }
+    }
+}
+
 /// The bond data a check reads, and whether the CPU runs its lanes 4- or 8-wide.
 pub struct BondView<'a, const D: usize> {
     reference: &'a [[f64; D]],
@@ -13,6 +36,9 @@ pub struct BondView<'a, const D: usize> {
     avx2: bool,
     #[cfg(target_arch = "x86_64")]
     avx512: bool,
+    /// The hand-written 2D kernel (`avx512::least_d2`) can run.
+    #[cfg(target_arch = "x86_64")]
+    kernel_2d: bool,
 }
 
 impl<'a, const D: usize> BondView<'a, D> {
@@ -30,12 +56,43 @@ impl<'a, const D: usize> BondView<'a, D> {
             #[cfg(target_arch = "x86_64")]
             avx512: std::arch::is_x86_feature_detected!("avx512f")
                 && std::arch::is_x86_feature_detected!("avx512vl"),
+            #[cfg(target_arch = "x86_64")]
+            kernel_2d: D == 2 && avx512::available(),
         }
     }
 
-    /// The least g(r², l²) over bonds (i, j), j in `neighbors`.
+    /// The least `measure` over bonds (i, j), j in `neighbors`: the hand-written AVX-512
+    /// kernel on 2D scenes where it can run, the compiled lane builds otherwise (the same
+    /// value in every build: a minimum).
     #[inline(always)]
-    pub fn least(&self, i: usize, neighbors: &[u32], g: impl Fn(f64, f64) -> f64) -> f64 {
+    pub fn least(&self, i: usize, neighbors: &[u32], measure: Measure) -> f64 {
+        #[cfg(target_arch = "x86_64")]
+        if self.kernel_2d {
+            let (reference, positions) =
+                (self.reference.as_flattened(), self.positions.as_flattened());
+            // SAFETY: the features were detected in `new` and D is 2.
+            return unsafe {
+                match measure {
+                    Measure::Margin(factor) => {
+                        avx512::least_d2::<false>(i, neighbors, reference, positions, factor)
+                    }
+                    Measure::NegatedSquaredRatio => {
+                        avx512::least_d2::<true>(i, neighbors, reference, positions, 0.0)
+                    }
+                }
+            };
+        }
+        match measure {
+            Measure::Margin(factor) => {
+                self.least_compiled(i, neighbors, move |r2, l2| critical_margin(factor, r2, l2))
+            }
+            Measure::NegatedSquaredRatio => self.least_compiled(i, neighbors, |r2, l2| -(r2 / l2)),
+        }
+    }
+
+    /// The least g(r², l²) over bonds (i, j), j in `neighbors`, in the compiled lane builds.
+    #[inline(always)]
+    fn least_compiled(&self, i: usize, neighbors: &[u32], g: impl Fn(f64, f64) -> f64) -> f64 {
         #[cfg(target_arch = "x86_64")]
         if self.avx512 {
             // SAFETY: the CPU supports AVX-512 F/VL (detected in `new`).
@@ -144,8 +201,9 @@ mod tests {
     use crate::discretization::grid::Lattice;
     use crate::scene::Solid;
 
-    /// Every build (portable 4 lanes, AVX2, AVX-512 8 lanes) returns the plain minimum over
-    /// the row, on rows whose lengths are not multiples of the lane count.
+    /// Every build (portable 4 lanes, AVX2, AVX-512 8 lanes, the hand-written 2D kernel)
+    /// returns the plain minimum over the row, for both measures, in 2D and 3D, on rows whose
+    /// lengths are not multiples of the lane count.
     #[test]
     fn least_margin_is_the_rows_minimum_in_every_build() {
         let cube = Solid::Box {
@@ -153,7 +211,6 @@ mod tests {
             max: vec![7.0; 3],
         };
         let lattice = Lattice::<3>::build(&cube, 1.0, [-0.2, 0.2], 3);
-        let families = Families::build(&lattice.positions, 2.6);
         let positions: Vec<[f64; 3]> = lattice
             .positions
             .iter()
@@ -165,25 +222,55 @@ mod tests {
                 ]
             })
             .collect();
-        let view = BondView::new(&lattice.positions, &positions, &families);
-        let factor = 1.0 + 0.5 * 0.01;
-        let margin = |r2: f64, l2: f64| critical_margin(factor, r2, l2);
-        for i in 0..lattice.len() {
-            let row = &families.neighbors[families.range(i)];
-            let plain = row
-                .iter()
-                .map(|&j| {
-                    let (r2, l2) = bond_squares(i, j as usize, &lattice.positions, &positions);
-                    margin(r2, l2)
-                })
-                .fold(f64::INFINITY, f64::min);
-            assert_eq!(view.least(i, row, margin), plain);
-            let portable = |n: usize| match n {
-                4 => least_portable::<3, 4>(i, row, &lattice.positions, &positions, margin),
-                _ => least_portable::<3, 8>(i, row, &lattice.positions, &positions, margin),
-            };
-            assert_eq!(portable(4), plain);
-            assert_eq!(portable(8), plain);
+        assert_rows_minimum(&lattice.positions, &positions, 2.6);
+        let square = Solid::Box {
+            min: vec![0.0; 2],
+            max: vec![15.0; 2],
+        };
+        let plane = Lattice::<2>::build(&square, 1.0, [-0.2, 0.2], 5);
+        let positions: Vec<[f64; 2]> = plane
+            .positions
+            .iter()
+            .map(|x| [x[0] * (1.0 + 0.01 * x[1].sin()), x[1] + 1e-3 * x[0] * x[0]])
+            .collect();
+        assert_rows_minimum(&plane.positions, &positions, 4.3);
+    }
+
+    fn assert_rows_minimum<const D: usize>(
+        reference: &[[f64; D]],
+        positions: &[[f64; D]],
+        horizon: f64,
+    ) {
+        let families = Families::build(reference, horizon);
+        let view = BondView::new(reference, positions, &families);
+        let mut unaligned = 0;
+        for measure in [
+            Measure::Margin(1.0 + 0.5 * 0.01),
+            Measure::NegatedSquaredRatio,
+        ] {
+            for i in 0..reference.len() {
+                let row = &families.neighbors[families.range(i)];
+                unaligned += usize::from(!row.len().is_multiple_of(8));
+                let plain = row
+                    .iter()
+                    .map(|&j| {
+                        let (r2, l2) = bond_squares(i, j as usize, reference, positions);
+                        measure.of(r2, l2)
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                assert_eq!(view.least(i, row, measure), plain);
+                let g = |r2, l2| measure.of(r2, l2);
+                assert_eq!(view.least_compiled(i, row, g), plain);
+                assert_eq!(
+                    least_portable::<D, 4>(i, row, reference, positions, g),
+                    plain
+                );
+                assert_eq!(
+                    least_portable::<D, 8>(i, row, reference, positions, g),
+                    plain
+                );
+            }
         }
+        assert!(unaligned > 0);
     }
 }

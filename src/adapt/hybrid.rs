@@ -13,7 +13,7 @@
 use crate::scheme::wls::Collocation;
 use rayon::prelude::*;
 
-use super::bonds::{BondView, bond_squares, critical_margin};
+use super::bonds::{BondView, Measure, bond_squares, critical_margin};
 use super::interface::InterfaceDamping;
 use super::masks::SchemeClass;
 use super::motion::MotionBound;
@@ -268,16 +268,16 @@ impl<const D: usize> Hybrid<D> {
         }
     }
 
-    /// The least g(r², l²) over the bonds node `i` (in the check set) checks (+∞ if none), r
+    /// The least `measure` of the bonds node `i` (in the check set) checks (+∞ if none), r
     /// and l a bond's current and reference lengths, in SIMD lanes, streaming only the
     /// neighbour indices (bond lengths come from the cache-resident reference positions).
     #[inline(always)]
-    fn node_least(&self, i: usize, bonds: &BondView<D>, g: impl Fn(f64, f64) -> f64 + Copy) -> f64 {
+    fn node_least(&self, i: usize, bonds: &BondView<D>, measure: Measure) -> f64 {
         let families = bonds.families;
         bonds.least(
             i,
             &families.neighbors[self.checked_bonds_of(i, families)],
-            g,
+            measure,
         )
     }
 
@@ -285,7 +285,7 @@ impl<const D: usize> Hybrid<D> {
     /// checks (f l² − r² has the sign of the exact difference, so "least ≤ 0" is that test).
     fn node_critical(&self, i: usize, bonds: &BondView<D>, factor: f64) -> bool {
         self.mask[i] == SchemeClass::Wls
-            && self.node_least(i, bonds, move |r2, l2| critical_margin(factor, r2, l2)) <= 0.0
+            && self.node_least(i, bonds, Measure::Margin(factor)) <= 0.0
     }
 
     /// The check under the `all` and `near` policies, filtered by the motion bound: nodes whose
@@ -326,7 +326,7 @@ impl<const D: usize> Hybrid<D> {
                 |i| {
                     // √f·l − r = l (√f − r/l) ≥ l_min (√f − max r/l) while that is ≥ 0:
                     // one division per bond and one square root per node.
-                    let least = this.node_least(i, &bonds, |r2, l2| -(r2 / l2));
+                    let least = this.node_least(i, &bonds, Measure::NegatedSquaredRatio);
                     let slack = match sqrt_f - (-least).sqrt() {
                         // No checked bond (least = +∞ gives NaN here).
                         _ if least == f64::INFINITY => f64::INFINITY,

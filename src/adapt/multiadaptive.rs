@@ -26,7 +26,7 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
-use super::bonds::{BondView, bond_squares, critical_margin};
+use super::bonds::{BondView, Measure, bond_squares};
 use super::hybrid;
 use super::masks::{GridClass, SchemeClass};
 use super::multigrid::{idw, subcells, tree};
@@ -412,7 +412,7 @@ impl<const D: usize> MultiAdaptive<D> {
         let factor = (1.0 + self.chi * critical_stretch).powi(2);
         let class = &self.class;
         let bonds = BondView::new(reference, positions, families);
-        let margin = move |r2, l2| critical_margin(factor, r2, l2);
+        let margin = Measure::Margin(factor);
         // Every bond of every active coarse node, in SIMD lanes and without allocating: the
         // common case finds nothing (a bond between two active nodes is seen from both ends).
         let critical_nodes: Vec<usize> = (0..self.coarse_count)
@@ -430,7 +430,7 @@ impl<const D: usize> MultiAdaptive<D> {
                     .iter()
                     .filter(move |&&j| {
                         let (r2, l2) = bond_squares(i, j as usize, reference, positions);
-                        margin(r2, l2) <= 0.0
+                        margin.of(r2, l2) <= 0.0
                     })
                     .map(move |&j| (i as u32, j))
             })
