@@ -27,5 +27,6 @@ pub mod runner;
 pub mod scene;
 pub mod scheme;
 pub mod sim;
+pub mod simd;
 pub mod solver;
 pub mod sparse;

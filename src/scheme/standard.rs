@@ -125,7 +125,7 @@ impl<const D: usize> Standard<'_, D> {
         };
         #[cfg(target_arch = "x86_64")]
         if let Some(v) = self.uniform_volume
-            && D == 3
+            && (D == 2 || D == 3)
             && avx512::available()
         {
             return avx512::forces(
@@ -866,23 +866,22 @@ mod tests {
         }
     }
 
-    /// The hand-written AVX-512 kernel (3D, uniform volumes) gives the portable 8-lane loop's
-    /// bits for every influence and partial-volume choice, with a spacing and volume other
-    /// than 1 (so no product by 1 hides a wrong operand order) and bonds breaking.
+    /// The hand-written AVX-512 kernel (2D and 3D, uniform volumes) gives the portable 8-lane
+    /// loop's bits for every influence and partial-volume choice, with a spacing and volume
+    /// other than 1 (so no product by 1 hides a wrong operand order) and bonds breaking.
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn hand_written_kernel_matches_the_portable_loop_for_every_law() {
         if !avx512::available() {
             return;
         }
+        let dx = 0.7;
         let (lattice, _) = perturbed_cube(9.0, 17);
-        let (dx, v) = (0.7, 0.343);
         let reference: Vec<[f64; 3]> = lattice
             .positions
             .iter()
             .map(|x| x.map(|c| c * dx))
             .collect();
-        let families = Families::build(&reference, 3.0 * dx);
         let positions: Vec<[f64; 3]> = reference
             .iter()
             .map(|x| {
@@ -893,6 +892,29 @@ mod tests {
                 ]
             })
             .collect();
+        assert_kernel_matches_portable(&reference, &positions, dx, 0.343);
+        let square = Solid::Box {
+            min: vec![0.0; 2],
+            max: vec![17.0; 2],
+        };
+        let plane = Lattice::<2>::build(&square, 1.0, [-0.2, 0.2], 23);
+        let reference: Vec<[f64; 2]> = plane.positions.iter().map(|x| x.map(|c| c * dx)).collect();
+        let positions: Vec<[f64; 2]> = reference
+            .iter()
+            .map(|x| [x[0] * (1.0 + 0.002 * x[1]), x[1] - 0.0008 * x[0] * x[0]])
+            .collect();
+        assert_kernel_matches_portable(&reference, &positions, dx, 0.49);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    fn assert_kernel_matches_portable<const D: usize>(
+        reference: &[[f64; D]],
+        positions: &[[f64; D]],
+        dx: f64,
+        v: f64,
+    ) {
+        let families = Families::build(reference, 3.0 * dx);
+        let volumes = vec![v; reference.len()];
         let mut compared = 0;
         for influence in [Influence::Constant, Influence::Linear] {
             for volume_correction in [true, false] {
@@ -908,8 +930,8 @@ mod tests {
                     volume_correction,
                 };
                 let scheme = Standard {
-                    reference: &reference,
-                    volumes: &lattice.volumes,
+                    reference,
+                    volumes: &volumes,
                     uniform_volume: Some(v),
                     families: &families,
                     law: &law,
@@ -919,14 +941,14 @@ mod tests {
                     intact_bonds(families.bond_count()),
                     vec![NodeTerms::default(); reference.len()],
                 );
-                let broken = scheme.forces(&positions, &mut kernel.0, &mut kernel.1);
+                let broken = scheme.forces(positions, &mut kernel.0, &mut kernel.1);
                 assert!(
                     broken > 0 && broken < families.bond_count() as u64 / 2,
                     "{broken} of {}",
                     families.bond_count()
                 );
                 let rows = Rows {
-                    positions: &positions,
+                    positions,
                     families: &families,
                     quadrature: &quadrature,
                     first: 0,
@@ -941,7 +963,7 @@ mod tests {
                 let unit = |_j: usize| 1.0;
                 macro_rules! portable {
                     ($linear:literal, $beta:literal) => {
-                        rows_portable::<3, WIDE_LANES, u8>(
+                        rows_portable::<D, WIDE_LANES, u8>(
                             &rows,
                             &mut portable.1,
                             &mut portable.0,

@@ -1,8 +1,8 @@
 //! The least-measure scan of `BondView::least` on 2D scenes, written with AVX-512
 //! intrinsics: 8 bonds per iteration, each neighbour's reference and current position read
-//! with one 2-lane load apiece and transposed into x and y vectors (3 inserts and 2 permutes
-//! per 8 neighbours and array). The compiled 8-lane build spends about twice the
-//! instructions: a bounds check per lane and array, and scalar lane assembly.
+//! with one 2-lane load apiece and transposed into x and y vectors (`simd::gather8`). The
+//! compiled 8-lane build spends about twice the instructions: a bounds check per lane and
+//! array, and scalar lane assembly.
 //!
 //! r² and l² are formed as `bond_squares` forms them and the minimum is exact, so the result
 //! is the portable scan's bit for bit (`least_margin_is_the_rows_minimum_in_every_build`).
@@ -10,6 +10,7 @@
 use std::arch::x86_64::*;
 
 use super::{Measure, bond_squares, lesser};
+use crate::simd::{gather8, lanes};
 
 /// AVX-512 F and VL.
 pub(super) fn available() -> bool {
@@ -50,8 +51,13 @@ pub(super) unsafe fn least_d2<const NEGATED_RATIO: bool>(
     let chunks = neighbors.chunks_exact(LANES);
     let tail = chunks.remainder();
     for chunk in chunks {
-        // SAFETY: the indices were checked above.
-        let ((x, y), (u, v)) = unsafe { (pairs(reference, chunk), pairs(positions, chunk)) };
+        // SAFETY: the features are enabled here and the indices were checked above.
+        let ([x, y], [u, v]) = unsafe {
+            (
+                gather8::<2>(reference, chunk),
+                gather8::<2>(positions, chunk),
+            )
+        };
         let (dx, dy) = (_mm512_sub_pd(x, ref_x), _mm512_sub_pd(y, ref_y));
         let (ex, ey) = (_mm512_sub_pd(u, pos_x), _mm512_sub_pd(v, pos_y));
         let l2 = _mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy));
@@ -67,45 +73,17 @@ pub(super) unsafe fn least_d2<const NEGATED_RATIO: bool>(
         // `lesser`: the new value where it is below, NaN ignored.
         least = _mm512_min_pd(measure, least);
     }
-    let mut lanes = [0.0; LANES];
-    // SAFETY: 8 doubles into an array of 8.
-    unsafe { _mm512_storeu_pd(lanes.as_mut_ptr(), least) };
     let measure = if NEGATED_RATIO {
         Measure::NegatedSquaredRatio
     } else {
         Measure::Margin(factor)
     };
     let (reference, positions) = (reference.as_chunks::<2>().0, positions.as_chunks::<2>().0);
-    tail.iter()
-        .fold(lanes.into_iter().fold(f64::INFINITY, lesser), |a, &j| {
+    tail.iter().fold(
+        lanes(least).into_iter().fold(f64::INFINITY, lesser),
+        |a, &j| {
             let (r2, l2) = bond_squares(i, j as usize, reference, positions);
             lesser(a, measure.of(r2, l2))
-        })
-}
-
-/// The x and y coordinates of 8 nodes of a 2-per-node array as two vectors.
-///
-/// Safety: every index in `nodes[..8]` is a node of `values`.
-#[inline]
-#[target_feature(enable = "avx512f,avx512vl")]
-unsafe fn pairs(values: &[f64], nodes: &[u32]) -> (__m512d, __m512d) {
-    let p = values.as_ptr();
-    macro_rules! two {
-        ($a:expr, $b:expr) => {
-            // SAFETY: the caller guarantees the indices (2 doubles per node).
-            unsafe {
-                _mm256_insertf128_pd::<1>(
-                    _mm256_castpd128_pd256(_mm_loadu_pd(p.add(2 * nodes[$a] as usize))),
-                    _mm_loadu_pd(p.add(2 * nodes[$b] as usize)),
-                )
-            }
-        };
-    }
-    // [x0 y0 x1 y1 x2 y2 x3 y3] and [x4 y4 … x7 y7]
-    let low = _mm512_insertf64x4::<1>(_mm512_castpd256_pd512(two!(0, 1)), two!(2, 3));
-    let high = _mm512_insertf64x4::<1>(_mm512_castpd256_pd512(two!(4, 5)), two!(6, 7));
-    (
-        _mm512_permutex2var_pd(low, _mm512_set_epi64(14, 12, 10, 8, 6, 4, 2, 0), high),
-        _mm512_permutex2var_pd(low, _mm512_set_epi64(15, 13, 11, 9, 7, 5, 3, 1), high),
+        },
     )
 }

@@ -1,0 +1,95 @@
+//! AVX-512 building blocks shared by the hand-written kernels (`scheme::standard`'s force
+//! loop, `adapt::bonds`' switching scan): the coordinates of 8 nodes, stored 2 or 3 doubles
+//! per node, as one vector per axis.
+
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::*;
+
+/// AVX-512 F, VL, DQ and BW: what the hand-written kernels use.
+#[cfg(target_arch = "x86_64")]
+pub fn avx512_kernels_available() -> bool {
+    std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512vl")
+        && std::arch::is_x86_feature_detected!("avx512dq")
+        && std::arch::is_x86_feature_detected!("avx512bw")
+}
+
+/// The coordinates of nodes `nodes[..8]` of `values` (`D` = 2 or 3 doubles per node) as `D`
+/// vectors, lane l holding node `nodes[l]`. 2D: one 2-lane load per node, 3 inserts and
+/// 2 permutes per 8 nodes; 3D: one masked 3-lane load per node (the fourth lane never
+/// read), 4 inserts, 4 unpacks and 3 permutes.
+///
+/// # Safety
+/// AVX-512 F/VL are available, and every index in `nodes[..8]` is a node of `values`.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx512f,avx512vl")]
+pub unsafe fn gather8<const D: usize>(values: &[f64], nodes: &[u32]) -> [__m512d; D] {
+    let p = values.as_ptr();
+    let mut out = [_mm512_setzero_pd(); D];
+    if D == 2 {
+        macro_rules! two {
+            ($a:expr, $b:expr) => {
+                // SAFETY: the caller guarantees the indices (2 doubles per node).
+                unsafe {
+                    _mm256_insertf128_pd::<1>(
+                        _mm256_castpd128_pd256(_mm_loadu_pd(p.add(2 * nodes[$a] as usize))),
+                        _mm_loadu_pd(p.add(2 * nodes[$b] as usize)),
+                    )
+                }
+            };
+        }
+        // [x0 y0 x1 y1 x2 y2 x3 y3] and [x4 y4 … x7 y7]
+        let low = _mm512_insertf64x4::<1>(_mm512_castpd256_pd512(two!(0, 1)), two!(2, 3));
+        let high = _mm512_insertf64x4::<1>(_mm512_castpd256_pd512(two!(4, 5)), two!(6, 7));
+        out[0] = _mm512_permutex2var_pd(low, _mm512_set_epi64(14, 12, 10, 8, 6, 4, 2, 0), high);
+        out[1] = _mm512_permutex2var_pd(low, _mm512_set_epi64(15, 13, 11, 9, 7, 5, 3, 1), high);
+    } else {
+        assert_eq!(D, 3);
+        macro_rules! pair {
+            ($a:expr, $b:expr) => {
+                // SAFETY: the caller guarantees the indices; lane 4 of each load is masked
+                // off (fault-suppressed, never read).
+                unsafe {
+                    _mm512_insertf64x4::<1>(
+                        _mm512_castpd256_pd512(_mm256_maskz_loadu_pd(
+                            0b0111,
+                            p.add(3 * nodes[$a] as usize),
+                        )),
+                        _mm256_maskz_loadu_pd(0b0111, p.add(3 * nodes[$b] as usize)),
+                    )
+                }
+            };
+        }
+        // t_l = [x_l y_l z_l 0 | x_{l+4} y_{l+4} z_{l+4} 0]
+        let (t0, t1, t2, t3) = (pair!(0, 4), pair!(1, 5), pair!(2, 6), pair!(3, 7));
+        // Per 128-bit lane: [x0 x1][z0 z1][x4 x5][z4 z5] and [y0 y1][0 0][y4 y5][0 0].
+        let (lo01, hi01) = (_mm512_unpacklo_pd(t0, t1), _mm512_unpackhi_pd(t0, t1));
+        let (lo23, hi23) = (_mm512_unpacklo_pd(t2, t3), _mm512_unpackhi_pd(t2, t3));
+        let firsts = _mm512_set_epi64(13, 12, 5, 4, 9, 8, 1, 0);
+        let seconds = _mm512_set_epi64(15, 14, 7, 6, 11, 10, 3, 2);
+        out[0] = _mm512_permutex2var_pd(lo01, firsts, lo23);
+        out[1] = _mm512_permutex2var_pd(hi01, firsts, hi23);
+        out[2] = _mm512_permutex2var_pd(lo01, seconds, lo23);
+    }
+    out
+}
+
+/// The lanes' sum in lane order, as a portable loop's `iter().sum()` over its lane array.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx512f")]
+pub fn lanes_sum(v: __m512d) -> f64 {
+    lanes(v).iter().sum()
+}
+
+/// The 8 lanes as an array.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx512f")]
+pub fn lanes(v: __m512d) -> [f64; 8] {
+    let mut out = [0.0; 8];
+    // SAFETY: 8 doubles into an array of 8.
+    unsafe { _mm512_storeu_pd(out.as_mut_ptr(), v) };
+    out
+}
