@@ -76,6 +76,9 @@ pub unsafe fn gather8<const D: usize>(values: &[f64], nodes: &[u32]) -> [__m512d
 }
 
 /// The lanes' sum in lane order, as a portable loop's `iter().sum()` over its lane array.
+///
+/// # Safety
+/// AVX-512 F is available (a safe call from code compiled with it).
 #[cfg(target_arch = "x86_64")]
 #[inline]
 #[target_feature(enable = "avx512f")]
@@ -84,6 +87,9 @@ pub fn lanes_sum(v: __m512d) -> f64 {
 }
 
 /// The 8 lanes as an array.
+///
+/// # Safety
+/// AVX-512 F is available (a safe call from code compiled with it).
 #[cfg(target_arch = "x86_64")]
 #[inline]
 #[target_feature(enable = "avx512f")]

@@ -171,12 +171,12 @@ fn cloud<const D: usize>(
     let mut out = vec![i];
     let row = families.offsets[i as usize]..families.offsets[i as usize + 1];
     for e in row {
-        if families.lengths[e] > spec.cloud_radius * (1.0 + 1e-9) {
+        if families.length(i as usize, e) > spec.cloud_radius * (1.0 + 1e-9) {
             continue;
         }
         let j = families.neighbors[e];
         let rel: [f64; D] = std::array::from_fn(|k| positions[j as usize][k] - x[k]);
-        let r = families.lengths[e];
+        let r = families.length(i as usize, e);
         let ahead: f64 = rel.iter().zip(normal).map(|(a, b)| a * b).sum();
         if spec.cone && -ahead <= r * spec.spread.sin() + 1e-12 * r {
             continue;

@@ -180,15 +180,11 @@ impl<const D: usize> Hybrid<D> {
             scans_backward: Vec::new(),
             check_bonds: 0,
             motion: (spec.check != CheckSet::Collocation).then(|| {
-                let reach = families.lengths.iter().fold(0.0, |a: f64, &l| a.max(l));
+                let reach = families.longest();
                 MotionBound::new(reference, reach)
             }),
             epoch_due: false,
-            shortest_bond: families
-                .lengths
-                .iter()
-                .copied()
-                .fold(f64::INFINITY, f64::min),
+            shortest_bond: families.shortest(),
             tracked: vec![false; mask_len],
             tracked_stale: true,
             standard_nodes,
@@ -319,7 +315,10 @@ impl<const D: usize> Hybrid<D> {
             // the plain check's.
             let sqrt_f = factor.sqrt();
             let shortest = this.shortest_bond;
-            let tolerance = 1e-9 * families.lengths.first().copied().unwrap_or(0.0);
+            let first_bond = (families.node_count() > 0)
+                .then(|| families.row_lengths(0).first().copied())
+                .flatten();
+            let tolerance = 1e-9 * first_bond.unwrap_or(0.0);
             let (reused, recomputed_bonds) = motion.refresh_slacks(
                 reuse,
                 |i| this.in_check[i] && this.mask[i] == SchemeClass::Wls,

@@ -61,11 +61,7 @@ impl InterfaceDamping {
     /// `band`: the band's half-width (m), rounded to lattice hops.
     pub fn new(strength: f64, band: f64, families: &Families) -> Self {
         let n = families.offsets.len() - 1;
-        let shortest = families
-            .lengths
-            .iter()
-            .copied()
-            .fold(f64::INFINITY, f64::min);
+        let shortest = families.shortest();
         let mut lattice_offsets = Vec::with_capacity(n + 1);
         lattice_offsets.push(0);
         let mut lattice = Vec::new();
@@ -73,7 +69,7 @@ impl InterfaceDamping {
             lattice.extend(
                 families
                     .range(i)
-                    .filter(|&b| families.lengths[b] <= LATTICE_REACH * shortest)
+                    .filter(|&b| families.length(i, b) <= LATTICE_REACH * shortest)
                     .map(|b| families.neighbors[b]),
             );
             lattice_offsets.push(lattice.len());

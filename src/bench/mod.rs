@@ -130,8 +130,8 @@ pub fn run(variant: Option<&str>, steps: Option<u64>) -> Result<String, String> 
         "\nlogging at the default cadence (a frame every {} steps): {:.1} % of wall time \
          ({:.1} % building frames on the solver thread, {:.1} % busy on the logging thread); \
          the recorded run took {:+.1} % wall time against the same run without a recording\n\
-         memory: {:.2} bytes per directed bond (4 index + 8 length + 1 state + all per-node \
-         arrays amortized)\n",
+         memory: {:.2} bytes per directed bond (4 index + 1 state, the rows' bond lengths \
+         stored once per distinct row, and all per-node arrays, amortized)\n",
         info.frame_every,
         100.0 * (logged.summary.frame_seconds + logged.logging_thread_seconds) / wall,
         100.0 * logged.summary.frame_seconds / wall,

@@ -155,7 +155,8 @@ impl<const D: usize> Discretization<D> {
             let cut: Vec<usize> = (0..positions.len())
                 .into_par_iter()
                 .filter(|&i| {
-                    let longest = families.lengths[families.range(i)]
+                    let longest = families
+                        .row_lengths(i)
                         .iter()
                         .fold(0.0f64, |m, &l| m.max(l));
                     family::crack_distance_bound(crack, &positions[i]) <= longest * (1.0 + 1e-9)

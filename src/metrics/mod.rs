@@ -56,7 +56,7 @@ pub fn crack_angle<const D: usize>(
         members.push(i);
         for b in families.range(i) {
             let j = families.neighbors[b] as usize;
-            if !seen[j] && families.lengths[b] <= 1.5 * spacing && eligible(j) {
+            if !seen[j] && families.length(i, b) <= 1.5 * spacing && eligible(j) {
                 seen[j] = true;
                 queue.push_back(j);
             }

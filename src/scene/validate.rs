@@ -11,7 +11,7 @@ use super::units::{Measure, Relative};
 use super::*;
 use crate::model::pmb::{Failure, PmbConstants, Stiffness};
 
-/// Directed bonds a scene may have (≈ 13 bytes each: 16 GB).
+/// Directed bonds a scene may have (≈ 13 bytes each while the families are built: 16 GB).
 const MAX_BONDS: f64 = 1.2e9;
 
 pub(super) fn validate(

@@ -48,7 +48,7 @@ impl NnppBonds {
                 .flat_map_iter(|i| {
                     let quadrature = quadrature(i);
                     families.range(i).map(move |b| {
-                        let r = families.lengths[b];
+                        let r = families.length(i, b);
                         let j = families.neighbors[b] as usize;
                         k * influence(kernel.influence, r, kernel.horizon) / r.powf(n + 2.0 * q)
                             * quadrature.beta(r)

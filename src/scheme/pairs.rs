@@ -35,8 +35,7 @@ impl PairPlan {
     /// fewer than [`MIN_BLOCKS`] blocks.
     pub fn build(families: &Families, intact: &[u8]) -> Option<PairPlan> {
         let n = families.node_count();
-        let (neighbors, lengths, offsets) =
-            (&families.neighbors, &families.lengths, &families.offsets);
+        let (neighbors, offsets) = (&families.neighbors, &families.offsets);
         let forward: Vec<usize> = (0..n)
             .into_par_iter()
             .map(|i| {
@@ -50,8 +49,9 @@ impl PairPlan {
             sorted
                 && (forward[i]..offsets[i + 1]).all(|b| {
                     let j = neighbors[b] as usize;
-                    reverse_bond(neighbors, offsets[j], forward[j], i)
-                        .is_some_and(|r| lengths[r] == lengths[b] && intact[r] == intact[b])
+                    reverse_bond(neighbors, offsets[j], forward[j], i).is_some_and(|r| {
+                        families.length(j, r) == families.length(i, b) && intact[r] == intact[b]
+                    })
                 })
         });
         // Every backward bond is some forward bond's reverse when the two counts agree.
@@ -315,7 +315,7 @@ where
         volume,
         ..
     } = inputs;
-    let (neighbors, lengths, offsets) = (&families.neighbors, &families.lengths, &families.offsets);
+    let (neighbors, offsets) = (&families.neighbors, &families.offsets);
     let Region {
         first,
         first_bond,
@@ -327,13 +327,18 @@ where
         let y_i = positions[i];
         let v_i = volume(i);
         let bonds = plan.forward[i]..offsets[i + 1];
+        // Row i's lengths, indexed by bond from the row's start.
+        let row_lengths = families.row_lengths(i);
+        let lengths = |b: usize| row_lengths[b - offsets[i]];
         let mut acc_lanes = [[0.0; LANES]; D];
         let mut w_lanes = [0.0; LANES];
         let mut lost = 0.0;
         let blocked = bonds.start + bonds.len() / LANES * LANES;
         for b in (bonds.start..blocked).step_by(LANES) {
             let nb: &[u32; LANES] = neighbors[b..b + LANES].try_into().expect("4 lanes");
-            let ln: &[f64; LANES] = lengths[b..b + LANES].try_into().expect("4 lanes");
+            let ln: &[f64; LANES] = row_lengths[b - offsets[i]..b - offsets[i] + LANES]
+                .try_into()
+                .expect("4 lanes");
             let (d, vol, r2) = lane_offsets::<D, LANES>(y_i, nb, positions, volume);
             let st: [u8; LANES] = state[b - first_bond..b - first_bond + LANES]
                 .try_into()
@@ -414,7 +419,7 @@ where
             if state[b - first_bond] == 0 {
                 continue;
             }
-            let (j, length) = (neighbors[b] as usize, lengths[b]);
+            let (j, length) = (neighbors[b] as usize, lengths(b));
             let y_j = positions[j];
             let mut d = [0.0; D];
             let mut r2 = 0.0;

@@ -79,7 +79,7 @@ impl<const D: usize> Standard<'_, D> {
                 let (mut all, mut lost) = (0.0, 0.0);
                 for b in families.range(i) {
                     let j = families.neighbors[b] as usize;
-                    let w = self.quadrature.beta(families.lengths[b]) * self.damage_volume(j);
+                    let w = self.quadrature.beta(families.length(i, b)) * self.damage_volume(j);
                     all += w;
                     if intact[b] == 0 {
                         lost += w;
@@ -176,7 +176,7 @@ impl<const D: usize> Standard<'_, D> {
                 families
                     .range(i)
                     .map(|b| {
-                        let l = families.lengths[b];
+                        let l = families.length(i, b);
                         let j = families.neighbors[b] as usize;
                         influence(law.influence, l, law.horizon) * law.micromodulus / l
                             * self.quadrature.beta(l)
@@ -206,7 +206,7 @@ impl<const D: usize> Standard<'_, D> {
                 continue;
             }
             let j = families.neighbors[b] as usize;
-            let l = families.lengths[b];
+            let l = families.length(i, b);
             let r = (0..D)
                 .map(|k| (positions[j][k] - positions[i][k]).powi(2))
                 .sum::<f64>()
@@ -230,11 +230,15 @@ impl<const D: usize> Standard<'_, D> {
     pub fn linearized_coefficients(&self, density: f64) -> Vec<f64> {
         let (families, law) = (self.families, self.law);
         let c = law.micromodulus / density;
-        families
-            .lengths
-            .par_iter()
-            .zip(&families.neighbors)
-            .with_min_len(4096)
+        (0..families.node_count())
+            .into_par_iter()
+            .with_min_len(64)
+            .flat_map_iter(|i| {
+                families
+                    .row_lengths(i)
+                    .iter()
+                    .zip(&families.neighbors[families.range(i)])
+            })
             .map(|(&l, &j)| {
                 c * influence(law.influence, l, law.horizon)
                     * self.quadrature.beta(l)
@@ -315,7 +319,7 @@ pub fn diffusion_operator<const D: usize>(
             weights.push(0.0);
             for b in range {
                 let j = families.neighbors[b];
-                let l = families.lengths[b];
+                let l = families.length(i as usize, b);
                 let w = kernel.weight(l) * quadrature.beta(l) * volumes[j as usize];
                 columns.push(j);
                 weights.push(w);
@@ -457,7 +461,7 @@ fn rows_portable<const D: usize, const N: usize, M: RowMask>(
         let (acc, w, newly_broken, lost) = pmb_row::<D, N>(
             rows.positions[i],
             &families.neighbors[range.clone()],
-            &families.lengths[range.clone()],
+            families.row_lengths(i),
             &mut state[range.start - base..range.end - base],
             rows.positions,
             rows.s0,

@@ -738,11 +738,7 @@ impl DualHorizonSimulation {
                 })
             })
             .collect();
-        Families {
-            offsets,
-            neighbors,
-            lengths,
-        }
+        Families::from_rows(offsets, neighbors, lengths)
     }
 
     fn crack_angles_for(&self, damage: &[f64]) -> Vec<(String, Option<f64>)> {

@@ -649,11 +649,7 @@ impl<const D: usize> DynamicSimulation<D> {
     pub fn memory_bytes(&self) -> usize {
         use std::mem::size_of_val;
         let families = self.families();
-        size_of_val(families.neighbors.as_slice())
-            + size_of_val(families.lengths.as_slice())
-            + size_of_val(families.offsets.as_slice())
-            + size_of_val(self.intact.as_slice())
-            + self.nodes().memory_bytes()
+        families.memory_bytes() + size_of_val(self.intact.as_slice()) + self.nodes().memory_bytes()
     }
 
     /// Strain-energy density W_i of one node (J/m³), over its own level's family on a

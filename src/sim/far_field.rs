@@ -59,7 +59,7 @@ impl Filter {
         for &i in nodes {
             let i = i as usize;
             for e in families.offsets[i]..families.offsets[i + 1] {
-                if families.lengths[e] <= 1.01 * spacing {
+                if families.length(i, e) <= 1.01 * spacing {
                     let j = families.neighbors[e];
                     sources.push(match index[j as usize] {
                         u32::MAX => Source::Field(j),

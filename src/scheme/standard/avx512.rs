@@ -87,7 +87,7 @@ unsafe fn rows_simd<const D: usize, const LINEAR: bool, const BETA: bool, M: Row
         }
         let range = families.range(i);
         let neighbors = &families.neighbors[range.clone()];
-        let lengths = &families.lengths[range.clone()];
+        let lengths = families.row_lengths(i);
         let st = &mut state[range.start - base..range.end - base];
         let y_i = rows.positions[i];
         let blocked = neighbors.len() / WIDE_LANES * WIDE_LANES;
