@@ -439,6 +439,26 @@ struct Rows<'a, const D: usize, M> {
     skip: Option<&'a [M]>,
 }
 
+impl<const D: usize, M: RowMask> Rows<'_, D, M> {
+    /// The block's rows the mask does not skip: (node, its terms, its bond states), `terms`
+    /// and `state` being the block's.
+    fn each_row<'t>(
+        &self,
+        terms: &'t mut [NodeTerms<D>],
+        state: &'t mut [u8],
+    ) -> impl Iterator<Item = (usize, &'t mut NodeTerms<D>, &'t mut [u8])> {
+        let families = self.families;
+        let (first, skip) = (self.first, self.skip);
+        let mut rest = state;
+        terms.iter_mut().enumerate().filter_map(move |(row, t_i)| {
+            let i = first + row;
+            let (row_state, tail) = std::mem::take(&mut rest).split_at_mut(families.range(i).len());
+            rest = tail;
+            (!skip.is_some_and(|mask| mask[i].skipped())).then_some((i, t_i, row_state))
+        })
+    }
+}
+
 /// The force loop's rows with `N` bonds evaluated together (`LANES` on the portable and AVX2
 /// builds, `WIDE_LANES` on AVX-512).
 #[inline(always)]
@@ -449,26 +469,9 @@ fn rows_portable<const D: usize, const N: usize, M: RowMask>(
     weight: &impl Fn(f64) -> f64,
     volume: &impl Fn(usize) -> f64,
 ) -> u64 {
-    let families = rows.families;
-    let base = families.offsets[rows.first];
     let mut broken = 0u64;
-    for (row, t_i) in terms.iter_mut().enumerate() {
-        let i = rows.first + row;
-        if rows.skip.is_some_and(|mask| mask[i].skipped()) {
-            continue;
-        }
-        let range = families.range(i);
-        let (acc, w, newly_broken, lost) = pmb_row::<D, N>(
-            rows.positions[i],
-            &families.neighbors[range.clone()],
-            families.row_lengths(i),
-            &mut state[range.start - base..range.end - base],
-            rows.positions,
-            rows.s0,
-            rows.quadrature,
-            weight,
-            volume,
-        );
+    for (i, t_i, row_state) in rows.each_row(terms, state) {
+        let (acc, w, newly_broken, lost) = pmb_row::<D, N, M>(rows, i, row_state, weight, volume);
         broken += newly_broken;
         t_i.force = acc;
         t_i.energy_density = 0.25 * w;
@@ -560,21 +563,22 @@ pub(crate) fn lane_offsets<const D: usize, const N: usize>(
     (d, vol, r2)
 }
 
-/// One node's row: (force density, 4·W_i, bonds broken now). Blocks of `N` bonds are
-/// evaluated branch-free (a broken bond weighs 0), the remainder one by one.
+/// Node i's row (its bond states `state`): (force density, 4·W_i, bonds broken now). Blocks
+/// of `N` bonds are evaluated branch-free (a broken bond weighs 0), the remainder one by one.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn pmb_row<const D: usize, const N: usize>(
-    y_i: [f64; D],
-    neighbors: &[u32],
-    lengths: &[f64],
+fn pmb_row<const D: usize, const N: usize, M: RowMask>(
+    rows: &Rows<D, M>,
+    i: usize,
     state: &mut [u8],
-    positions: &[[f64; D]],
-    s0: f64,
-    quadrature: &Quadrature,
     weight: &impl Fn(f64) -> f64,
     volume: &impl Fn(usize) -> f64,
 ) -> ([f64; D], f64, u64, f64) {
+    let (y_i, positions, s0, quadrature) =
+        (rows.positions[i], rows.positions, rows.s0, rows.quadrature);
+    let (neighbors, lengths) = (
+        &rows.families.neighbors[rows.families.range(i)],
+        rows.families.row_lengths(i),
+    );
     let mut lost = 0.0;
     let mut acc_lanes = [[0.0; N]; D];
     let mut w_lanes = [0.0; N];
@@ -616,13 +620,10 @@ fn pmb_row<const D: usize, const N: usize>(
     }
     let mut w: f64 = w_lanes.iter().sum();
     pmb_tail(
-        y_i,
-        &neighbors[blocked..],
-        &lengths[blocked..],
-        &mut state[blocked..],
-        positions,
-        s0,
-        quadrature,
+        rows,
+        i,
+        blocked,
+        state,
         weight,
         volume,
         (&mut acc, &mut w, &mut broken, &mut lost),
@@ -652,24 +653,24 @@ fn break_lanes<const N: usize>(
     broken
 }
 
-/// The bonds of a row left after its blocks of lanes, one by one, added to `sums` (force
-/// density, 4·W_i, bonds broken, Σ β V'_j lost).
+/// Node i's bonds from its `first`-th on (those left after the blocks of lanes), one by one,
+/// added to `sums` (force density, 4·W_i, bonds broken, Σ β V'_j lost); `state` is the row's.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn pmb_tail<const D: usize>(
-    y_i: [f64; D],
-    neighbors: &[u32],
-    lengths: &[f64],
+fn pmb_tail<const D: usize, M: RowMask>(
+    rows: &Rows<D, M>,
+    i: usize,
+    first: usize,
     state: &mut [u8],
-    positions: &[[f64; D]],
-    s0: f64,
-    quadrature: &Quadrature,
     weight: &impl Fn(f64) -> f64,
     volume: &impl Fn(usize) -> f64,
     sums: (&mut [f64; D], &mut f64, &mut u64, &mut f64),
 ) {
     let (acc, w, broken, lost) = sums;
-    for ((&j, &length), mu) in neighbors.iter().zip(lengths).zip(state) {
+    let (y_i, positions, s0, quadrature) =
+        (rows.positions[i], rows.positions, rows.s0, rows.quadrature);
+    let neighbors = &rows.families.neighbors[rows.families.range(i)][first..];
+    let lengths = &rows.families.row_lengths(i)[first..];
+    for ((&j, &length), mu) in neighbors.iter().zip(lengths).zip(&mut state[first..]) {
         if *mu == 0 {
             continue;
         }

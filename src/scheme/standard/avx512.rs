@@ -74,21 +74,14 @@ unsafe fn rows_simd<const D: usize, const LINEAR: bool, const BETA: bool, M: Row
     let families = rows.families;
     let positions = rows.positions.as_flattened();
     let node_count = rows.positions.len();
-    let base = families.offsets[rows.first];
     let scalar_weight = |l: f64| weight.at::<LINEAR, BETA>(l) * volume;
     let unit = |_j: usize| 1.0;
     let s0 = _mm512_set1_pd(rows.s0);
     let v = _mm512_set1_pd(volume);
     let mut broken = 0u64;
-    for (row, t_i) in terms.iter_mut().enumerate() {
-        let i = rows.first + row;
-        if rows.skip.is_some_and(|mask| mask[i].skipped()) {
-            continue;
-        }
-        let range = families.range(i);
-        let neighbors = &families.neighbors[range.clone()];
+    for (i, t_i, st) in rows.each_row(terms, state) {
+        let neighbors = &families.neighbors[families.range(i)];
         let lengths = families.row_lengths(i);
-        let st = &mut state[range.start - base..range.end - base];
         let y_i = rows.positions[i];
         let blocked = neighbors.len() / WIDE_LANES * WIDE_LANES;
         // Every neighbour index is a node of this scene (checked once per row, not per lane).
@@ -146,13 +139,10 @@ unsafe fn rows_simd<const D: usize, const LINEAR: bool, const BETA: bool, M: Row
         let mut acc: [f64; D] = std::array::from_fn(|k| lanes_sum(acc_lanes[k]));
         let mut w = lanes_sum(w_lanes);
         pmb_tail(
-            y_i,
-            &neighbors[blocked..],
-            &lengths[blocked..],
-            &mut st[blocked..],
-            rows.positions,
-            rows.s0,
-            rows.quadrature,
+            rows,
+            i,
+            blocked,
+            st,
             &scalar_weight,
             &unit,
             (&mut acc, &mut w, &mut broken, &mut lost),
