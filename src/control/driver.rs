@@ -214,6 +214,8 @@ impl Driver {
 
     /// One step, with a frame when the cadence or the end says so.
     pub fn step(&mut self) -> Result<(), SimError> {
+        // The live cadence, so the step knows whether a frame will read what it computes.
+        self.sim.run_mut().frame_every = self.state.every;
         if let Err(e) = self.sim.step() {
             self.message("error", &e.to_string());
             return Err(e);

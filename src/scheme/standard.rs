@@ -99,18 +99,21 @@ impl<const D: usize> Standard<'_, D> {
         intact: &mut [u8],
         terms: &mut [NodeTerms<D>],
     ) -> u64 {
-        self.forces_masked::<u8>(positions, intact, terms, None)
+        self.forces_masked::<u8>(positions, intact, terms, None, true)
     }
 
     /// As `forces`, skipping the rows whose mask entry is `skipped` (the hybrid scheme's Ω_w
     /// nodes, seed-thesis-ch2-3 §5): their terms are left as they are and their bonds are
-    /// never evaluated.
+    /// never evaluated. Without `energy` the hand-written kernel leaves the strain-energy
+    /// densities as they are (a step no frame reads skips that sum); the other builds always
+    /// compute them.
     pub fn forces_masked<M: RowMask>(
         &self,
         positions: &[[f64; D]],
         intact: &mut [u8],
         terms: &mut [NodeTerms<D>],
         skip: Option<&[M]>,
+        energy: bool,
     ) -> u64 {
         let (families, law, quadrature) = (self.families, self.law, self.quadrature);
         assert_eq!(positions.len(), families.node_count());
@@ -134,8 +137,11 @@ impl<const D: usize> Standard<'_, D> {
                 terms,
                 BondWeight::of(law, quadrature),
                 v,
-                law.influence == Influence::Linear,
-                quadrature.volume_correction,
+                (
+                    law.influence == Influence::Linear,
+                    quadrature.volume_correction,
+                    energy,
+                ),
             );
         }
         self.with_bond_law(GatherLoop {
@@ -985,6 +991,18 @@ mod tests {
                 };
                 assert_eq!(portable_broken, broken);
                 assert_eq!(portable, kernel, "{influence:?}, β {volume_correction}");
+                // Without the energy sum: the same forces and bonds, energies left alone.
+                let mut quiet = (
+                    intact_bonds(families.bond_count()),
+                    vec![NodeTerms::default(); reference.len()],
+                );
+                let quiet_broken =
+                    scheme.forces_masked::<u8>(positions, &mut quiet.0, &mut quiet.1, None, false);
+                assert_eq!((quiet_broken, &quiet.0), (broken, &kernel.0));
+                for (q, k) in quiet.1.iter().zip(&kernel.1) {
+                    assert_eq!((q.force, q.broken_weight), (k.force, k.broken_weight));
+                    assert_eq!(q.energy_density, 0.0);
+                }
                 compared += 1;
             }
         }

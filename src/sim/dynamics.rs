@@ -88,6 +88,10 @@ pub struct DynamicSimulation<const D: usize> {
     pub absorbing: Option<BondLayer<D>>,
     /// `[[metrics.probe]]`: (name, nearest node).
     probes: Vec<(String, usize)>,
+    /// Whether the node terms' strain-energy densities belong to the last force pass. The
+    /// pass sums them only when a frame is due after its step (`RunState::frame_due_next`);
+    /// a frame or checkpoint taken at another step evaluates them afresh.
+    energy_current: bool,
 }
 
 /// The standard scheme over one discretization's reference configuration.
@@ -379,6 +383,7 @@ impl<const D: usize> DynamicSimulation<D> {
             coarse_wls,
             absorbing,
             probes,
+            energy_current: false,
         };
         sim.apply_initial_velocity();
         sim.apply_initial_displacement();
@@ -509,13 +514,15 @@ impl<const D: usize> DynamicSimulation<D> {
     }
 
     fn update_accelerations(&mut self) {
-        self.compute_forces();
+        self.compute_forces(true);
         self.accelerate(None);
     }
 
     /// Force densities at the current positions: the PMB bond loop (Ω_s rows only in a
-    /// hybrid) and the WLS product on Ω_w.
-    fn compute_forces(&mut self) {
+    /// hybrid) and the WLS product on Ω_w; the bond loop's strain-energy densities too where
+    /// `energy` is set.
+    fn compute_forces(&mut self, energy: bool) {
+        self.energy_current = energy;
         let Discretization {
             nodes,
             families,
@@ -559,8 +566,13 @@ impl<const D: usize> DynamicSimulation<D> {
                     law: &self.law,
                     quadrature,
                 };
-                let broken =
-                    scheme.forces_masked(positions, &mut self.intact, terms, Some(rows.as_slice()));
+                let broken = scheme.forces_masked(
+                    positions,
+                    &mut self.intact,
+                    terms,
+                    Some(rows.as_slice()),
+                    energy,
+                );
                 self.broken += broken;
                 if coarse {
                     self.coarse_broken += broken;
@@ -569,7 +581,7 @@ impl<const D: usize> DynamicSimulation<D> {
             return;
         }
         let mask = self.hybrid.as_ref().map(|h| h.mask());
-        self.broken += scheme.forces_masked(positions, &mut self.intact, terms, mask);
+        self.broken += scheme.forces_masked(positions, &mut self.intact, terms, mask, energy);
         if let Some(h) = self.hybrid.as_mut() {
             h.wls_forces(nodes.base.reference(), positions);
         }
@@ -951,7 +963,7 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
             );
         }
         lap.charge(&mut self.run.stages, SWITCHING);
-        self.compute_forces();
+        self.compute_forces(self.run.frame_due_next());
         lap.charge(&mut self.run.stages, FORCES);
         let max_speed2 = self.accelerate(Some(dt));
         if let Some(h) = self.hybrid.as_mut() {
@@ -1012,7 +1024,7 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
                 if mass_volumes[i] == 0.0 {
                     return 0.0;
                 }
-                let w = if self.runs_wls(i) {
+                let w = if self.runs_wls(i) || !self.energy_current {
                     self.energy_density(i)
                 } else {
                     terms[i].energy_density
@@ -1118,10 +1130,13 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         state.put_f64("position", self.positions().as_flattened().to_vec());
         state.put_f64("velocity", self.velocities().as_flattened().to_vec());
         state.put_f64("acceleration", self.accelerations().as_flattened().to_vec());
-        let terms = self.terms().iter().flat_map(|t| {
-            t.force
-                .into_iter()
-                .chain([t.energy_density, t.broken_weight])
+        let terms = self.terms().iter().enumerate().flat_map(|(i, t)| {
+            let energy = if self.energy_current {
+                t.energy_density
+            } else {
+                self.energy_density(i)
+            };
+            t.force.into_iter().chain([energy, t.broken_weight])
         });
         state.put_f64("terms", terms.collect());
         state.put_u8("intact", self.intact.clone());
@@ -1193,6 +1208,7 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
             (t.energy_density, t.broken_weight) = (saved[D], saved[D + 1]);
         }
         self.intact.copy_from_slice(intact);
+        self.energy_current = true;
         (self.broken, self.hybrid_violations) = (broken[0], broken[1]);
         self.run.clock = clock;
         Ok(())

@@ -92,6 +92,13 @@ impl RunState {
         })
     }
 
+    /// Whether a frame follows the next step at this run's cadence (its end included): what
+    /// a step computes only to be shown can be skipped on the others.
+    pub fn frame_due_next(&self) -> bool {
+        let next = self.clock.step() + 1;
+        next.is_multiple_of(self.frame_every.max(1)) || next >= self.clock.total_steps()
+    }
+
     pub fn info(&self, size: Size) -> SimInfo {
         SimInfo {
             dim: size.dim,

@@ -33,12 +33,11 @@ pub(super) fn forces<const D: usize, M: RowMask>(
     terms: &mut [NodeTerms<D>],
     weight: BondWeight,
     volume: f64,
-    linear: bool,
-    beta: bool,
+    (linear, beta, energy): (bool, bool, bool),
 ) -> u64 {
     assert!((D == 2 || D == 3) && available());
     macro_rules! run {
-        ($linear:literal, $beta:literal) => {
+        ($linear:literal, $beta:literal, $energy:literal) => {
             split_rows(
                 rows.families,
                 0,
@@ -48,23 +47,35 @@ pub(super) fn forces<const D: usize, M: RowMask>(
                     let block = Rows { first, ..*rows };
                     // SAFETY: the features were detected (asserted above); D is 2 or 3.
                     unsafe {
-                        rows_simd::<D, $linear, $beta, M>(&block, terms, state, &weight, volume)
+                        rows_simd::<D, $linear, $beta, $energy, M>(
+                            &block, terms, state, &weight, volume,
+                        )
                     }
                 },
             )
         };
     }
-    match (linear, beta) {
-        (false, true) => run!(false, true),
-        (false, false) => run!(false, false),
-        (true, true) => run!(true, true),
-        (true, false) => run!(true, false),
+    match (linear, beta, energy) {
+        (false, true, true) => run!(false, true, true),
+        (false, false, true) => run!(false, false, true),
+        (true, true, true) => run!(true, true, true),
+        (true, false, true) => run!(true, false, true),
+        (false, true, false) => run!(false, true, false),
+        (false, false, false) => run!(false, false, false),
+        (true, true, false) => run!(true, true, false),
+        (true, false, false) => run!(true, false, false),
     }
 }
 
 /// One task's rows. `D` must be 2 or 3: positions are read as a flat array of D per node.
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
-unsafe fn rows_simd<const D: usize, const LINEAR: bool, const BETA: bool, M: RowMask>(
+unsafe fn rows_simd<
+    const D: usize,
+    const LINEAR: bool,
+    const BETA: bool,
+    const ENERGY: bool,
+    M: RowMask,
+>(
     rows: &Rows<D, M>,
     terms: &mut [NodeTerms<D>],
     state: &mut [u8],
@@ -120,7 +131,9 @@ unsafe fn rows_simd<const D: usize, const LINEAR: bool, const BETA: bool, M: Row
             );
             let scale = _mm512_maskz_div_pd(keep, numerator, _mm512_mul_pd(ln, r));
             // Strain energy w β V_j = ½ ω c s² ‖ξ‖ β V_j (2.27), with the force.
-            w_lanes = _mm512_add_pd(w_lanes, _mm512_mul_pd(_mm512_mul_pd(scale, extension), r));
+            if ENERGY {
+                w_lanes = _mm512_add_pd(w_lanes, _mm512_mul_pd(_mm512_mul_pd(scale, extension), r));
+            }
             if alive != keep {
                 let keep_lanes: [bool; WIDE_LANES] = std::array::from_fn(|l| keep & (1 << l) != 0);
                 broken += break_lanes(
@@ -148,7 +161,9 @@ unsafe fn rows_simd<const D: usize, const LINEAR: bool, const BETA: bool, M: Row
             (&mut acc, &mut w, &mut broken, &mut lost),
         );
         t_i.force = acc;
-        t_i.energy_density = 0.25 * w;
+        if ENERGY {
+            t_i.energy_density = 0.25 * w;
+        }
         t_i.broken_weight += lost;
     }
     broken
