@@ -5,13 +5,24 @@
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
 
-/// AVX-512 F, VL, DQ and BW: what the hand-written kernels use.
+/// AVX-512 F and VL: the switching scan's builds (compiled and hand-written).
 #[cfg(target_arch = "x86_64")]
-pub fn avx512_kernels_available() -> bool {
+pub fn avx512_f_vl() -> bool {
     std::arch::is_x86_feature_detected!("avx512f")
         && std::arch::is_x86_feature_detected!("avx512vl")
-        && std::arch::is_x86_feature_detected!("avx512dq")
-        && std::arch::is_x86_feature_detected!("avx512bw")
+}
+
+/// AVX-512 F, VL and DQ: the compiled 8-lane force loop.
+#[cfg(target_arch = "x86_64")]
+pub fn avx512_f_vl_dq() -> bool {
+    avx512_f_vl() && std::arch::is_x86_feature_detected!("avx512dq")
+}
+
+/// AVX-512 F, VL, DQ and BW: the hand-written force kernel (BW for the byte test that reads
+/// 8 bond states at once).
+#[cfg(target_arch = "x86_64")]
+pub fn avx512_kernels_available() -> bool {
+    avx512_f_vl_dq() && std::arch::is_x86_feature_detected!("avx512bw")
 }
 
 /// The coordinates of nodes `nodes[..8]` of `values` (`D` = 2 or 3 doubles per node) as `D`

@@ -54,10 +54,9 @@ impl<'a, const D: usize> BondView<'a, D> {
             #[cfg(target_arch = "x86_64")]
             avx2: std::arch::is_x86_feature_detected!("avx2"),
             #[cfg(target_arch = "x86_64")]
-            avx512: std::arch::is_x86_feature_detected!("avx512f")
-                && std::arch::is_x86_feature_detected!("avx512vl"),
+            avx512: crate::simd::avx512_f_vl(),
             #[cfg(target_arch = "x86_64")]
-            kernel_2d: D == 2 && avx512::available(),
+            kernel_2d: D == 2 && crate::simd::avx512_f_vl(),
         }
     }
 

@@ -52,23 +52,19 @@ impl RowLengths {
                 })
         };
         let keys: Vec<u64> = (0..rows).into_par_iter().map(key).collect();
-        let mut first_with: std::collections::HashMap<u64, Vec<usize>> = Default::default();
+        // The first row seen with each hash; a row equal to it shares its lengths (a distinct
+        // row with a colliding hash is stored on its own: correct, only not shared).
+        let mut first_with: std::collections::HashMap<u64, usize> = Default::default();
         let mut starts = Vec::with_capacity(rows);
         let mut pool = Vec::new();
         for (i, &k) in keys.iter().enumerate() {
             let row = &lengths[offsets[i]..offsets[i + 1]];
-            let candidates = first_with.entry(k).or_default();
-            let same = candidates.iter().copied().find(|&start| {
-                pool.get(start..start + row.len())
-                    .is_some_and(|stored: &[f64]| stored == row)
-            });
-            match same {
-                Some(start) => starts.push(start),
-                None => {
-                    candidates.push(pool.len());
-                    starts.push(pool.len());
-                    pool.extend_from_slice(row);
-                }
+            let start = *first_with.entry(k).or_insert(pool.len());
+            if start < pool.len() && pool.get(start..start + row.len()) == Some(row) {
+                starts.push(start);
+            } else {
+                starts.push(pool.len());
+                pool.extend_from_slice(row);
             }
         }
         pool.shrink_to_fit();

@@ -129,7 +129,7 @@ impl<const D: usize> Standard<'_, D> {
         #[cfg(target_arch = "x86_64")]
         if let Some(v) = self.uniform_volume
             && (D == 2 || D == 3)
-            && avx512::available()
+            && crate::simd::avx512_kernels_available()
         {
             return avx512::forces(
                 &rows,
@@ -529,9 +529,7 @@ rows_build!(
 /// Whether the AVX-512 force loop can run here.
 #[cfg(target_arch = "x86_64")]
 fn avx512_detected() -> bool {
-    std::arch::is_x86_feature_detected!("avx512f")
-        && std::arch::is_x86_feature_detected!("avx512vl")
-        && std::arch::is_x86_feature_detected!("avx512dq")
+    crate::simd::avx512_f_vl_dq()
 }
 
 /// Bonds evaluated together: the lane loops below are written so the compiler turns them
@@ -883,7 +881,7 @@ mod tests {
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn hand_written_kernel_matches_the_portable_loop_for_every_law() {
-        if !avx512::available() {
+        if !crate::simd::avx512_kernels_available() {
             return;
         }
         let dx = 0.7;

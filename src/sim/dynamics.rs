@@ -1130,15 +1130,20 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         state.put_f64("position", self.positions().as_flattened().to_vec());
         state.put_f64("velocity", self.velocities().as_flattened().to_vec());
         state.put_f64("acceleration", self.accelerations().as_flattened().to_vec());
-        let terms = self.terms().iter().enumerate().flat_map(|(i, t)| {
-            let energy = if self.energy_current {
-                t.energy_density
-            } else {
-                self.energy_density(i)
-            };
-            t.force.into_iter().chain([energy, t.broken_weight])
-        });
-        state.put_f64("terms", terms.collect());
+        let terms: Vec<f64> = self
+            .terms()
+            .par_iter()
+            .enumerate()
+            .flat_map_iter(|(i, t)| {
+                let energy = if self.energy_current {
+                    t.energy_density
+                } else {
+                    self.energy_density(i)
+                };
+                t.force.into_iter().chain([energy, t.broken_weight])
+            })
+            .collect();
+        state.put_f64("terms", terms);
         state.put_u8("intact", self.intact.clone());
         state.put_u64("broken", vec![self.broken, self.hybrid_violations]);
         if let Some(h) = &self.hybrid {

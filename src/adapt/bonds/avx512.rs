@@ -12,18 +12,12 @@ use std::arch::x86_64::*;
 use super::{Measure, bond_squares, lesser};
 use crate::simd::{gather8, lanes};
 
-/// AVX-512 F and VL.
-pub(super) fn available() -> bool {
-    std::arch::is_x86_feature_detected!("avx512f")
-        && std::arch::is_x86_feature_detected!("avx512vl")
-}
-
 const LANES: usize = 8;
 
 /// The least of f l² − r² (`NEGATED_RATIO` false, f = `factor`) or of −r²/l² (true) over
 /// the bonds (i, j), j in `neighbors`; `reference` and `positions` hold 2 doubles per node.
 ///
-/// Safety: AVX-512 F/VL are available (`available()`).
+/// Safety: AVX-512 F/VL are available (`simd::avx512_f_vl()`).
 #[target_feature(enable = "avx512f,avx512vl")]
 pub(super) unsafe fn least_d2<const NEGATED_RATIO: bool>(
     i: usize,

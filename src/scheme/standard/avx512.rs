@@ -16,17 +16,11 @@ use super::{BondWeight, NodeTerms, Rows, WIDE_LANES, break_lanes, pmb_tail, spli
 use crate::scheme::RowMask;
 use crate::simd::{avx512_kernels_available, gather8, lanes_sum};
 
-/// Whether this kernel can run here: AVX-512 F/VL/DQ as `rows_avx512`, and BW for the byte
-/// test that reads 8 bond states at once.
-pub(super) fn available() -> bool {
-    avx512_kernels_available()
-}
-
 /// The force loop over all rows (`Standard::forces_masked` on a 2D or 3D scene with uniform
 /// volumes): ω c β V s e per bond with the influence and partial-volume factor of
 /// `weight`, V = `volume`. Returns the directed bonds broken.
 ///
-/// The caller checks `available()` and that `D` is 2 or 3.
+/// The caller checks `simd::avx512_kernels_available()` and that `D` is 2 or 3.
 pub(super) fn forces<const D: usize, M: RowMask>(
     rows: &Rows<D, M>,
     intact: &mut [u8],
@@ -35,7 +29,7 @@ pub(super) fn forces<const D: usize, M: RowMask>(
     volume: f64,
     (linear, beta, energy): (bool, bool, bool),
 ) -> u64 {
-    assert!((D == 2 || D == 3) && available());
+    assert!((D == 2 || D == 3) && avx512_kernels_available());
     macro_rules! run {
         ($linear:literal, $beta:literal, $energy:literal) => {
             split_rows(
