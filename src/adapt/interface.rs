@@ -116,11 +116,43 @@ impl InterfaceDamping {
             })
             .collect();
         for _ in 1..self.hops {
-            in_band = (0..n)
-                .into_par_iter()
-                .map(|i| in_band[i] || self.neighbours(i).iter().any(|&j| in_band[j as usize]))
-                .collect();
+            in_band = self.grown(&in_band, None);
         }
+        self.set_band(&in_band);
+    }
+
+    /// `in_band` and every node a lattice hop from it (among the `allowed` ones, if given).
+    fn grown(&self, in_band: &[bool], allowed: Option<&[bool]>) -> Vec<bool> {
+        (0..in_band.len())
+            .into_par_iter()
+            .map(|i| {
+                in_band[i]
+                    || (allowed.is_none_or(|a| a[i])
+                        && self.neighbours(i).iter().any(|&j| in_band[j as usize]))
+            })
+            .collect()
+    }
+
+    /// A band inside a boundary zone's edge (the absorbing layer's, issue 19): the nodes
+    /// outside `outside` at 2 … hops + 1 lattice hops from it. The first hop is left out so that
+    /// L D L reads and writes no node of the zone: the damping acts on the inside alone, and
+    /// there it keeps momentum and never raises the kinetic energy.
+    pub fn rebuild_inside(&mut self, outside: &[bool]) {
+        if self.strength == 0.0 {
+            return;
+        }
+        let inside: Vec<bool> = outside.iter().map(|o| !o).collect();
+        let first = self.grown(outside, Some(&inside));
+        let mut reach = first.clone();
+        for _ in 0..self.hops {
+            reach = self.grown(&reach, Some(&inside));
+        }
+        let band: Vec<bool> = reach.iter().zip(&first).map(|(r, f)| *r && !f).collect();
+        self.set_band(&band);
+    }
+
+    fn set_band(&mut self, in_band: &[bool]) {
+        let n = in_band.len();
         let mut slot = vec![u32::MAX; n];
         self.band.clear();
         for i in (0..n).filter(|&i| in_band[i]) {
@@ -277,6 +309,52 @@ mod tests {
         damping.apply(&mut w, 0.7, 1.0);
         for (a, b) in linear.iter().zip(&w) {
             assert!((a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12);
+        }
+    }
+
+    /// A band inside a zone (the absorbing layer's use): the zone is the columns x ≥ 16; a band
+    /// of 2 hops is the columns 13 and 14 (hops 2 and 3), and the update reads and writes no
+    /// node of the zone or of column 15 beyond the band's lattice neighbours: the zone's
+    /// velocities stay as they are, the inside keeps its momentum and loses kinetic energy.
+    #[test]
+    fn a_band_inside_a_zone_leaves_the_zone_alone() {
+        let (x, families, _) = lattice();
+        let zone: Vec<bool> = x.iter().map(|p| p[0] >= 16.0).collect();
+        let mut damping = InterfaceDamping::new(0.02, 2.0, &families);
+        damping.rebuild_inside(&zone);
+        assert_eq!(damping.damped().len(), 40);
+        assert!(damping.damped().iter().all(|&i| {
+            let c = x[i as usize][0];
+            c == 13.0 || c == 14.0
+        }));
+        let before: Vec<[f64; 2]> = x
+            .iter()
+            .map(|p| [(p[0] * 1.7).sin() + p[1], (p[1] * 2.3).cos() * p[0]])
+            .collect();
+        let mut v = before.clone();
+        // Velocities in the zone that would change the band's Laplacian if it were read.
+        for (vi, z) in v.iter_mut().zip(&zone) {
+            if *z {
+                *vi = [1e3, -1e3];
+            }
+        }
+        let zone_before = v.clone();
+        damping.apply(&mut v, 0.7, 1.0);
+        let inside = |v: &[[f64; 2]]| {
+            v.iter()
+                .zip(&zone)
+                .filter(|(_, z)| !**z)
+                .fold(([0.0, 0.0], 0.0), |(p, e), (a, _)| {
+                    ([p[0] + a[0], p[1] + a[1]], e + a[0] * a[0] + a[1] * a[1])
+                })
+        };
+        let ((p0, e0), (p1, e1)) = (inside(&zone_before), inside(&v));
+        assert!((p0[0] - p1[0]).abs() < 1e-12 && (p0[1] - p1[1]).abs() < 1e-12);
+        assert!(e1 < e0);
+        for (i, (a, b)) in zone_before.iter().zip(&v).enumerate() {
+            if a != b {
+                assert!((12.0..=15.0).contains(&x[i][0]), "node {i} at {:?}", x[i]);
+            }
         }
     }
 

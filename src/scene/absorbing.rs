@@ -320,8 +320,28 @@ pub(super) fn absorbing(
         (0.0..=0.5).contains(&filter),
         "[0, 0.5]",
     )?;
+    // κ ≤ 0.02: the explicit damping update's rate is clamped at 90 % of its limit beyond
+    // (`adapt::interface`).
+    let damping = table.damping.unwrap_or(0.0);
+    let damping = in_range(
+        ctx,
+        "absorbing.damping",
+        damping,
+        (0.0..=0.02).contains(&damping),
+        "[0, 0.02]",
+    )?;
+    let damping_band = match table.damping_band {
+        Some(m) => positive(
+            ctx,
+            "absorbing.damping_band",
+            length(ctx, "absorbing.damping_band", m, spacing, horizon)?,
+        )?,
+        None => horizon,
+    };
     Ok(AbsorbingSpec {
         method,
+        damping,
+        damping_band,
         width,
         cloud_radius,
         wave_numbers,

@@ -325,6 +325,13 @@ pub struct AbsorbingSpec {
     /// node's value becomes (1 − ε) u_a + ε · the mean of its lattice neighbours (not in the
     /// thesis; see `sim::far_field::Filter`).
     pub filter: f64,
+    /// κ of a damped band of near-field nodes inside the layer (0: none, the thesis; not in the
+    /// thesis): after every step v ← v − r L D L v there, r = κ ω_max Δt, as at the hybrid's
+    /// interface (`adapt::interface`). It takes O(r (kΔx)⁴) per step from a smooth wave and O(r)
+    /// from the lattice-scale waves that no fitted mode carries.
+    pub damping: f64,
+    /// The damped band's width (m); it starts two lattice hops inside the layer.
+    pub damping_band: f64,
     /// Adds the far field's rest states to every node's modes: u = const (s = 0) and, for a
     /// damped wave, u = e^{−2dt} (s = −2d), the k → 0 limits of (4.53) (not in the thesis;
     /// see `absorb::scalar_modes`).

@@ -531,6 +531,10 @@ pub struct AbsorbingTable {
     pub thinning: bool,
     /// ε of the layer's selective filter, [0, 0.5] (0: none).
     pub filter: Option<f64>,
+    /// κ of the damped band inside the layer, [0, 0.02] (0: none).
+    pub damping: Option<f64>,
+    /// The damped band's width (default one horizon).
+    pub damping_band: Option<Measure>,
     /// Fit the far field's rest states (u = const, and e^{−2dt} for damped waves) too.
     #[serde(default)]
     pub rest_modes: bool,

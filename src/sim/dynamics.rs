@@ -974,6 +974,14 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
                 .get_mut(self.columns.velocity);
             h.damp_interface(velocities, dt, self.run.stable.sharp);
         }
+        if let Some(b) = self.absorbing.as_mut() {
+            let velocities = self
+                .discretization
+                .nodes
+                .fields
+                .get_mut(self.columns.velocity);
+            b.damp(velocities, dt, self.run.stable.sharp);
+        }
         lap.charge(&mut self.run.stages, KICK);
         self.apply_constraints();
         lap.charge(&mut self.run.stages, CONSTRAINTS);
@@ -1070,7 +1078,7 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         }
         let (mut classes, mut events) = self.hybrid_frame(&mut scalars);
         if let Some(b) = &self.absorbing {
-            classes.push(b.absorber.class_field());
+            classes.push(b.absorber.class_field(b.damped()));
         }
         classes.extend(self.multigrid_frame(&mut scalars, &mut events));
         for (name, angle) in self.crack_angles_for(&damage) {
@@ -1237,7 +1245,7 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
     fn check_notes(&self) -> Vec<String> {
         self.absorbing
             .as_ref()
-            .map_or(Vec::new(), |b| b.absorber.report())
+            .map_or(Vec::new(), |b| b.report())
     }
 
     fn broken_bonds(&self) -> u64 {

@@ -12,9 +12,11 @@ use crate::scheme::ScalarOperator;
 /// The layer's class field ids.
 const NEAR_FIELD: u16 = 0;
 const ABSORBING: u16 = 1;
+const DAMPED: u16 = 2;
 const CLASSES: &[(u16, &str, [u8; 3])] = &[
     (NEAR_FIELD, "near field", [200, 200, 200]),
     (ABSORBING, "absorbing", [217, 72, 1]),
+    (DAMPED, "damped band", [253, 174, 107]),
 ];
 
 /// The far field a layer absorbs into.
@@ -289,14 +291,19 @@ impl<const D: usize> Absorber<D> {
         own + f.strength * (sum / around.len() as f64 - own)
     }
 
-    pub fn class_field(&self) -> ClassField {
+    /// The `boundary` classes: the layer, and the near-field nodes of a damped band inside it.
+    pub fn class_field(&self, damped: &[u32]) -> ClassField {
+        let mut ids: Vec<u16> = self
+            .is_absorbing
+            .iter()
+            .map(|&a| if a { ABSORBING } else { NEAR_FIELD })
+            .collect();
+        for &i in damped {
+            ids[i as usize] = DAMPED;
+        }
         ClassField {
             name: "boundary",
-            ids: self
-                .is_absorbing
-                .iter()
-                .map(|&a| if a { ABSORBING } else { NEAR_FIELD })
-                .collect(),
+            ids,
             classes: CLASSES,
         }
     }

@@ -893,7 +893,7 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
         }
         let mut classes = self.corrosion_frame(&mut scalars);
         if let Some(a) = &self.absorber {
-            classes.push(a.class_field());
+            classes.push(a.class_field(&[]));
         }
         let radii = self.multigrid.as_ref().map_or(Vec::new(), |g| {
             GridClass::radii(&g.class, g.coarse.spacing, g.fine.spacing)

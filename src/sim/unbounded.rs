@@ -6,6 +6,7 @@
 
 use super::far_field::{Absorber, nearest_node};
 use crate::absorb::{BondFarField, BondLattice, dispersion};
+use crate::adapt::interface::InterfaceDamping;
 use crate::discretization::{Families, Quadrature};
 use crate::model::pmb::PmbLaw;
 use crate::scene::{Scene, SceneError};
@@ -18,6 +19,8 @@ pub struct BondLayer<const D: usize> {
     previous_velocity: Vec<f64>,
     /// u at t^n, flattened (scratch of `prepare`).
     displacement: Vec<f64>,
+    /// The damped band inside the layer (`absorbing.damping` > 0), built by `start`.
+    damping: Option<InterfaceDamping>,
 }
 
 /// The long-wave (local) speeds (c_P, c_S) of the bond-based continuum: √(M/(ρk²)) of (4.111)
@@ -65,6 +68,7 @@ impl<const D: usize> BondLayer<D> {
             previous_displacement: vec![0.0; n * D],
             previous_velocity: vec![0.0; n * D],
             displacement: vec![0.0; n * D],
+            damping: None,
         }))
     }
 
@@ -80,6 +84,39 @@ impl<const D: usize> BondLayer<D> {
         self.absorber.ensure_fitted(dt, reference, families);
         displacement_into(reference, positions, &mut self.previous_displacement);
         self.previous_velocity.fill(0.0);
+        let spec = &self.absorber.spec;
+        if spec.damping > 0.0 && self.damping.is_none() {
+            let mut damping = InterfaceDamping::new(spec.damping, spec.damping_band, families);
+            damping.rebuild_inside(&self.absorber.is_absorbing);
+            self.damping = Some(damping);
+        }
+    }
+
+    /// The damped band's update after a step `dt` of a run whose stable step is `stable_dt`.
+    pub fn damp(&mut self, velocities: &mut [[f64; D]], dt: f64, stable_dt: f64) {
+        if let Some(d) = self.damping.as_mut() {
+            d.apply(velocities, dt, stable_dt);
+        }
+    }
+
+    /// The damped band's nodes (none without `absorbing.damping`).
+    pub fn damped(&self) -> &[u32] {
+        self.damping.as_ref().map_or(&[], |d| d.damped())
+    }
+
+    /// `check`'s lines: the layer's, then the damped band's.
+    pub fn report(&self) -> Vec<String> {
+        let mut lines = self.absorber.report();
+        let spec = &self.absorber.spec;
+        if spec.damping > 0.0 {
+            lines.push(format!(
+                "absorbing layer: damped band of {} near-field nodes ({:.3e} m wide, κ = {})",
+                self.damped().len(),
+                spec.damping_band,
+                spec.damping
+            ));
+        }
+        lines
     }
 
     /// The layer's u^{n+1} and u̇^{n+1} from the state at t^n and t^{n−1} (refitted first if

@@ -185,10 +185,11 @@ fn bond_pulse_leaves_the_disc_through_the_layer() {
     eprintln!(
         "S10 small: the compared nodes' energy rises at {compared:?}; the reference's at {reference:?}"
     );
-    // Not met yet (issue 19): once ≈ 7 % of the energy is left (t ≈ 26 µs) the near-field
-    // energy rises by 1–2 % at a few checks. So does the reference's nodal energy over the same
-    // nodes (printed beside it): in the pulse's 2D wake the energy flux through the disc's edge
-    // changes sign, so these rises are the measure's, not the layer's. Reported, not asserted.
+    // Reported, not asserted: once ≈ 7 % of the energy is left (t ≈ 26 µs) the near-field
+    // energy of this narrow pulse rises by 1–2 % at a few checks, and so does the reference's
+    // nodal energy over the same nodes (printed beside it): in the pulse's 2D wake the energy
+    // flux through the disc's edge changes sign. The monotone decay is asserted on `scaled`
+    // (the thesis's pulse), where the reference's energy falls at every check.
     eprintln!("S10 small: near-field energy rises after t = 5 µs: {own:?}");
 }
 
@@ -207,24 +208,75 @@ fn scaled_bond_layer_matches_the_large_disc() {
         &["absorbing=false".to_string()],
     )
     .unwrap();
-    let runs = lockstep(&[scene("scaled"), free], &reference, 10, 48e-3 - 1e-9);
+    let runs = lockstep(&[scene("scaled"), free], &reference, 2, 48e-3 - 1e-9);
     for (v, r) in ["scaled", "scaled, free"].iter().zip(&runs) {
         r.report(v);
     }
     let (layer, free) = (&runs[0], &runs[1]);
-    let from = layer.times.iter().position(|&t| t >= 5e-6).unwrap();
+    // From when the reference's energy over r < 48 mm starts to fall: the pulse's 1 % contour
+    // (r ≈ 21.5 mm) reaches r = 48 mm at (48 − 21.5) mm / c_P ≈ 5.1 µs. Before, the nodal
+    // energy of the closed region wavers by ≈ 1 % as the pulse turns potential into kinetic
+    // energy (Verlet keeps a shadow energy, not this one), in the reference too. It then falls
+    // at every check until the 2D wake's flux turns inwards for a while (the first rise at
+    // 69.8 µs; on r ≤ 300 mm to 0.1 ms it rises at 4 checks, docs/results.md).
+    let reference_series: Vec<f64> = layer.compared_energies.iter().map(|e| e.1).collect();
+    let rising = |w: &[f64]| w[1] > w[0] * (1.0 + 1e-9);
+    let from = reference_series
+        .windows(2)
+        .enumerate()
+        .filter(|&(i, w)| layer.times[i + 1] < 6e-6 && rising(w))
+        .last()
+        .map_or(0, |(i, _)| i + 1);
+    let until = reference_series[from..]
+        .windows(2)
+        .position(rising)
+        .map_or(reference_series.len(), |i| from + i + 1);
+    assert!(
+        layer.times[until - 1] > 60e-6,
+        "the reference's energy falls only from t = {:.3e} s to {:.3e} s",
+        layer.times[from],
+        layer.times[until - 1]
+    );
+    let window = |series: &mut dyn Iterator<Item = f64>| -> Vec<f64> {
+        series.take(until).collect()
+    };
+    let mut up = [Vec::new(), Vec::new()];
     for (name, pick) in [("the layer's", 0), ("the reference's", 1)] {
-        let series = layer.compared_energies.iter().map(|e| [e.0, e.1][pick]);
-        let up = rises(&layer.times, series, from);
-        eprintln!("S10 scaled: {name} energy over r < 48 mm rises at {up:?}");
+        let series = window(&mut layer.compared_energies.iter().map(|e| [e.0, e.1][pick]));
+        up[pick] = rises(&layer.times, series.into_iter(), from);
+        eprintln!(
+            "S10 scaled: {name} energy over r < 48 mm from t = {:.3e} s to {:.3e} s, checked \
+             every 2 steps, rises at {:?}",
+            layer.times[from],
+            layer.times[until - 1],
+            up[pick]
+        );
     }
+    let own = rises(
+        &layer.times,
+        window(&mut layer.energies.iter().copied()).into_iter(),
+        from,
+    );
+    eprintln!("S10 scaled: the near-field energy (4.169) rises at {own:?}");
+    let later = rises(
+        &layer.times,
+        layer.compared_energies.iter().map(|e| e.0),
+        until - 1,
+    );
+    eprintln!("S10 scaled: after the reference's first rise, the layer's rises at {later:?}");
+    // The issue's "decreases monotonically after the pulse reaches the layer", for as long as
+    // the unbounded plane's own energy over these nodes does. The layer meets it through its
+    // damped band (docs/results.md, "S10: a damped band inside the layer").
+    assert!(up[0].is_empty() && own.is_empty());
     assert!(!layer.diverged);
     assert!(layer.max_error() < 0.1 * free.max_error());
     assert!(layer.reflected() < 0.1 * free.reflected());
 }
 
 /// Tuning aid: `SCAN='a=1,b=2;a=3' cargo test --release -- --ignored scan_bond_layers` runs the
-/// `small` variant with each `;`-separated set of overrides against the reference.
+/// `small` variant (or `VARIANT=scaled`) with each `;`-separated set of overrides against its
+/// reference, comparing every `EVERY` steps (default 5), and prints the rises of the energy
+/// over the compared nodes once the front has reached the layer.
 #[test]
 #[ignore]
 fn scan_bond_layers() {
@@ -238,18 +290,42 @@ fn scan_bond_layers() {
                 .collect()
         })
         .collect();
+    let variant = std::env::var("VARIANT").unwrap_or("small".into());
+    let every: u64 = std::env::var("EVERY").map_or(5, |s| s.parse().unwrap());
+    let near = if variant == "scaled" { 48e-3 } else { 28e-3 } - 1e-9;
+    // `END=0.1ms` runs every scene longer; `REFERENCE='geometry.sphere.radius="300 mm"'`
+    // overrides the reference (a larger disc for a longer run).
+    let end: Vec<String> = std::env::var("END")
+        .map(|e| vec![format!("time.end=\"{e}\"")])
+        .unwrap_or_default();
     let scenes: Vec<Scene> = sets
         .iter()
-        .map(|s| Scene::load_with("abc-bond-2d", Some("small"), s).unwrap())
+        .map(|s| {
+            let s: Vec<String> = s.iter().chain(&end).cloned().collect();
+            Scene::load_with("abc-bond-2d", Some(&variant), &s).unwrap()
+        })
         .collect();
-    let runs = lockstep(&scenes, &scene("small-reference"), 5, 28e-3 - 1e-9);
+    let mut reference_set = crate::common::env_overrides("REFERENCE");
+    reference_set.extend(end);
+    let reference = Scene::load_with(
+        "abc-bond-2d",
+        Some(&format!("{variant}-reference")),
+        &reference_set,
+    )
+    .unwrap();
+    let runs = lockstep(&scenes, &reference, every, near);
     for (s, r) in sets.iter().zip(&runs) {
+        let from = r.times.iter().position(|&t| t >= 5e-6).unwrap_or(0);
+        let up = rises(&r.times, r.compared_energies.iter().map(|e| e.0), from);
+        let reference_up = rises(&r.times, r.compared_energies.iter().map(|e| e.1), from);
+        eprintln!("the reference's rises: {reference_up:?}");
         eprintln!(
-            "{s:?}: max err {:.3e}, reflected {:.3e}, energy end {:.3e}{}",
+            "{s:?}: max err {:.3e}, reflected {:.3e}, energy end {:.3e}{}, {} rises: {up:?}",
             r.max_error(),
             r.reflected(),
             r.energies.last().copied().unwrap_or(f64::NAN),
-            if r.diverged { " (diverged)" } else { "" }
+            if r.diverged { " (diverged)" } else { "" },
+            up.len()
         );
     }
 }
@@ -258,9 +334,9 @@ fn scan_bond_layers() {
 /// 10⁵ steps (18 ms, 600 times the crossing time of the disc; ≈ 3 min on 2 cores). On an
 /// unbounded plane nothing is left in the disc by then, so the near-field energy at the end must
 /// be below 1 % of its value when the pulse has left (t = 0.03 ms), and it never exceeds the
-/// initial energy (measured with the preset's Tikhonov λ = 2e-3 and filter 0.5: 8.0·10⁻² J →
-/// 6.3·10⁻⁵ J, and 3.8·10⁻⁶ J at 2·10⁵ steps; with the plain pseudo-inverse the layer diverges
-/// near 3 000 steps, with λ alone from 1.4·10⁵; docs/results.md, "S10's long run").
+/// initial energy (measured with the preset's λ = 5e-4, filter 0.5 and damped band: 5.9·10⁻² J
+/// → 5.3·10⁻⁷ J, falling at every 10⁴ steps; with the plain pseudo-inverse alone the layer
+/// diverges near 3 000 steps; docs/results.md, "S10's long run" and "S10: a damped band").
 #[test]
 fn long_bond_run_stays_bounded() {
     let s = Scene::load_with(
@@ -476,7 +552,8 @@ fn a_bad_tikhonov_names_the_field() {
     }
 }
 
-/// Tuning aid: `VARIANT=scaled END=0.1ms FROM=21e-6 EVERY=5` runs one variant and prints the
+/// Tuning aid: `VARIANT=scaled END=0.1ms FROM=21e-6 EVERY=5` runs one variant (`base`: the
+/// preset without a variant) and prints the
 /// near-field energy's rises after `FROM` seconds and the series every 10 checks.
 #[test]
 #[ignore = "exploration"]
@@ -493,7 +570,8 @@ fn zz_bond_energy_series() {
     if let Ok(end) = std::env::var("END") {
         set.push(format!("time.end=\"{end}\""));
     }
-    let s = Scene::load_with("abc-bond-2d", Some(&variant), &set).unwrap();
+    let named = (variant != "base").then_some(variant.as_str());
+    let s = Scene::load_with("abc-bond-2d", named, &set).unwrap();
     let mut sim = DynamicSimulation::<2>::new(&s).unwrap();
     let (mut times, mut energies) = (Vec::new(), Vec::new());
     let mut n = 0u64;
