@@ -540,15 +540,19 @@ fn zz_bond_leading_mode() {
 /// allowed range.
 #[test]
 fn a_bad_tikhonov_names_the_field() {
-    for bad in ["absorbing.tikhonov=1.5", "absorbing.tikhonov=-1e-3"] {
+    let cases = [
+        ("absorbing.tikhonov=1.5", "absorbing.tikhonov", "[0, 1)"),
+        ("absorbing.tikhonov=-1e-3", "absorbing.tikhonov", "[0, 1)"),
+        ("absorbing.damping=0.05", "absorbing.damping", "[0, 0.02]"),
+        ("absorbing.damping=-0.01", "absorbing.damping", "[0, 0.02]"),
+        ("absorbing.damping_band=\"-2 mm\"", "absorbing.damping_band", ""),
+    ];
+    for (bad, field, range) in cases {
         let error = Scene::load_with("abc-bond-2d", Some("small"), &[bad.to_string()])
             .err()
             .unwrap_or_else(|| panic!("{bad} was accepted"))
             .to_string();
-        assert!(
-            error.contains("absorbing.tikhonov") && error.contains("[0, 1)"),
-            "{error}"
-        );
+        assert!(error.contains(field) && error.contains(range), "{error}");
     }
 }
 
