@@ -1243,9 +1243,7 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
     }
 
     fn check_notes(&self) -> Vec<String> {
-        self.absorbing
-            .as_ref()
-            .map_or(Vec::new(), |b| b.report())
+        self.absorbing.as_ref().map_or(Vec::new(), |b| b.report())
     }
 
     fn broken_bonds(&self) -> u64 {

@@ -224,8 +224,7 @@ fn scaled_bond_layer_matches_the_large_disc() {
     let from = reference_series
         .windows(2)
         .enumerate()
-        .filter(|&(i, w)| layer.times[i + 1] < 6e-6 && rising(w))
-        .last()
+        .rfind(|&(i, w)| layer.times[i + 1] < 6e-6 && rising(w))
         .map_or(0, |(i, _)| i + 1);
     let until = reference_series[from..]
         .windows(2)
@@ -237,9 +236,8 @@ fn scaled_bond_layer_matches_the_large_disc() {
         layer.times[from],
         layer.times[until - 1]
     );
-    let window = |series: &mut dyn Iterator<Item = f64>| -> Vec<f64> {
-        series.take(until).collect()
-    };
+    let window =
+        |series: &mut dyn Iterator<Item = f64>| -> Vec<f64> { series.take(until).collect() };
     let mut up = [Vec::new(), Vec::new()];
     for (name, pick) in [("the layer's", 0), ("the reference's", 1)] {
         let series = window(&mut layer.compared_energies.iter().map(|e| [e.0, e.1][pick]));
@@ -545,7 +543,11 @@ fn a_bad_tikhonov_names_the_field() {
         ("absorbing.tikhonov=-1e-3", "absorbing.tikhonov", "[0, 1)"),
         ("absorbing.damping=0.05", "absorbing.damping", "[0, 0.02]"),
         ("absorbing.damping=-0.01", "absorbing.damping", "[0, 0.02]"),
-        ("absorbing.damping_band=\"-2 mm\"", "absorbing.damping_band", ""),
+        (
+            "absorbing.damping_band=\"-2 mm\"",
+            "absorbing.damping_band",
+            "",
+        ),
     ];
     for (bad, field, range) in cases {
         let error = Scene::load_with("abc-bond-2d", Some("small"), &[bad.to_string()])
