@@ -966,21 +966,20 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         self.compute_forces(self.run.frame_due_next());
         lap.charge(&mut self.run.stages, FORCES);
         let max_speed2 = self.accelerate(Some(dt));
-        if let Some(h) = self.hybrid.as_mut() {
+        {
+            // The damped bands: the hybrid's interface and the absorbing layer's inside.
             let velocities = self
                 .discretization
                 .nodes
                 .fields
                 .get_mut(self.columns.velocity);
-            h.damp_interface(velocities, dt, self.run.stable.sharp);
-        }
-        if let Some(b) = self.absorbing.as_mut() {
-            let velocities = self
-                .discretization
-                .nodes
-                .fields
-                .get_mut(self.columns.velocity);
-            b.damp(velocities, dt, self.run.stable.sharp);
+            let stable = self.run.stable.sharp;
+            if let Some(h) = self.hybrid.as_mut() {
+                h.damp_interface(velocities, dt, stable);
+            }
+            if let Some(b) = self.absorbing.as_mut() {
+                b.damp(velocities, dt, stable);
+            }
         }
         lap.charge(&mut self.run.stages, KICK);
         self.apply_constraints();
