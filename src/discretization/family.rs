@@ -27,6 +27,19 @@ struct RowLengths {
     pool: Vec<f64>,
 }
 
+/// Per-bond values of a function of the reference length, shared by equal rows like the
+/// lengths themselves ([`Families::map_lengths`]).
+#[derive(Debug, Clone)]
+pub struct RowValues {
+    pool: Vec<f64>,
+}
+
+impl RowValues {
+    pub fn memory_bytes(&self) -> usize {
+        self.pool.len() * std::mem::size_of::<f64>()
+    }
+}
+
 impl RowLengths {
     /// The rows of `lengths` (one per bond, rows by `offsets`), repeated rows shared. Each
     /// length on a lattice, Δ·√n within 1e-12 relative for an integer n (Δ the shortest
@@ -211,6 +224,22 @@ impl Families {
     pub fn row_lengths(&self, i: usize) -> &[f64] {
         let start = self.lengths.starts[i];
         &self.lengths.pool[start..start + (self.offsets[i + 1] - self.offsets[i])]
+    }
+
+    /// A value per bond that depends on the bond's reference length alone, `f(l)`, stored as
+    /// the lengths are: one copy per distinct row (read with [`Self::row_values`]).
+    pub fn map_lengths(&self, f: impl Fn(f64) -> f64 + Sync) -> RowValues {
+        RowValues {
+            pool: self.lengths.pool.par_iter().map(|&l| f(l)).collect(),
+        }
+    }
+
+    /// Row i of `values`, made by [`Self::map_lengths`] on these families: `f` of
+    /// `row_lengths(i)`, bond by bond.
+    #[inline]
+    pub fn row_values<'a>(&self, values: &'a RowValues, i: usize) -> &'a [f64] {
+        let start = self.lengths.starts[i];
+        &values.pool[start..start + (self.offsets[i + 1] - self.offsets[i])]
     }
 
     /// The reference length of bond `b` (an index in `range(i)`) of node i.

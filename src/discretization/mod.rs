@@ -9,7 +9,7 @@ pub mod interpolation;
 pub mod layers;
 pub mod nodes;
 
-pub use family::Families;
+pub use family::{Families, RowValues};
 pub use grid::Lattice;
 pub use interpolation::{CrossBonds, Interpolation};
 pub use nodes::{Field, NodeValue, Nodes};

@@ -17,7 +17,7 @@ use crate::integrate::{self, stability, verlet};
 use crate::metrics;
 use crate::model::pmb::PmbLaw;
 use crate::scene::{CoarseScheme, Condition, Scene, SceneError};
-use crate::scheme::standard::{NodeTerms, Standard};
+use crate::scheme::standard::{Linearized, NodeTerms, Standard};
 use crate::scheme::wls_rows::WlsRows;
 use crate::solver::{
     Clock, Integrator, Lap, Param, RunState, SimError, SimInfo, Size, StableStep, State, Stepper,
@@ -168,6 +168,7 @@ fn level_stable_step<const D: usize>(
     }
     let mut coefficients = coarse.linearized_coefficients(density);
     coefficients[split..].copy_from_slice(&fine.linearized_coefficients(density)[split..]);
+    let coefficients = Linearized::PerBond(coefficients);
     let masses: Vec<f64> = grid
         .active_volumes(discretization.nodes.volumes())
         .iter()
@@ -212,7 +213,7 @@ fn stable_step<const D: usize>(
     let n = scheme.reference.len();
     let gershgorin_dt = integrate::stable_step(density, &scheme.stiffness_sums());
     let masses: Vec<f64> = scheme.volumes.iter().map(|v| v * density).collect();
-    let coefficients = scheme.linearized_coefficients(density);
+    let coefficients = scheme.linearized(density);
     let lambda_max = stability::max_eigenvalue::<D>(n, &masses, POWER_ITERATIONS, |u, out| {
         scheme.apply_linearized(&coefficients, intact, u, out)
     });
