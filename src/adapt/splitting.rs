@@ -10,8 +10,10 @@
 //!   whose horizon can reach a child, its own row again (ambiguity 4); only those rows are
 //!   searched and refitted;
 //! - bond states (ambiguity 5): a bond of or to a child inherits the state of the bond between
-//!   the particles it replaces (either direction), sibling bonds start intact, a new bond that
-//!   crosses a pre-crack is cut, and the next force pass breaks any bond already past s_c;
+//!   the particles it replaces (either direction), sibling bonds start intact, and the next
+//!   force pass breaks any bond already past s_c; pre-cracks are geometry: a new bond is cut
+//!   exactly when it crosses one, whatever the bond it replaces (that bond may cross the
+//!   pre-crack near its tip where the new one does not);
 //! - quadrature weights of the new rows are fitted over their bonds not cut by a pre-crack
 //!   (the pre-crack is a surface; bonds broken during the run soften the material, as they do
 //!   for the parents, whose weights were fitted before the run).
@@ -128,6 +130,13 @@ pub fn split(
             });
         }
     }
+    // The old particles' places (a parent's index goes to its first child): pre-crack
+    // crossings of the bonds the new ones replace. Only kept when there is a pre-crack.
+    let reference_of: Vec<[f64; 2]> = if precracks.is_empty() {
+        Vec::new()
+    } else {
+        nodes.reference()[..old_count].to_vec()
+    };
     // parent_of[i]: the parent whose child node i is (new indices), or u32::MAX.
     let mut parent_of = vec![u32::MAX; old_count + 3 * parents.len()];
     for (&p, (reference, current)) in parents.iter().zip(&placements) {
@@ -168,6 +177,16 @@ pub fn split(
         }
         let origin = |i: usize, p: u32| if p == u32::MAX { i as u32 } else { p };
         let (oa, ob) = (origin(a, pa), origin(b, pb));
+        // A pre-crack's cut is geometry, not history: the new bond's own crossing (`fitted`
+        // below) decides it. Inheriting it would carry the coarse lattice's crack tip (the
+        // cut bonds nearest the tip end up to Δ beyond it) into the children.
+        let (xa, xb) = (&reference_of[oa as usize], &reference_of[ob as usize]);
+        if precracks
+            .iter()
+            .any(|c| crosses(c, xa, xb) || crosses(c, xb, xa))
+        {
+            return 1;
+        }
         bonds
             .state(oa as usize, ob)
             .or_else(|| bonds.state(ob as usize, oa))

@@ -620,9 +620,10 @@ pub struct MetricsSpec {
     pub opening: Vec<OpeningTable>,
 }
 
-/// The opening of a crack at its mouth: the mean displacement along `axis` of the particles
-/// nearest `mouth` on its upper side minus that on its lower side (upper and lower along
-/// `axis`), among the particles within one cell of the body's edge at the mouth.
+/// The opening of a crack at its mouth: the displacement along `axis` of the upper face minus
+/// that of the lower face (upper and lower along `axis`), each face's taken from its particle
+/// nearest `mouth` (within one cell of the crack line) and the next one of the same row,
+/// extrapolated linearly to the mouth (the particles sit half a cell and more inside the edge).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OpeningTable {

@@ -722,8 +722,30 @@ impl DualHorizonSimulation {
                     d(a).total_cmp(&d(b))
                 })
         };
+        // Each face's displacement along `axis`, extrapolated linearly to the mouth from its
+        // particle nearest the mouth and the next one of the same row inwards (Tada's d0 is
+        // the opening at the edge, the particles sit Δ/2 and 3Δ/2 inside it); the nearest
+        // particle's own value when the row has no second one.
+        let face = |k: usize| -> f64 {
+            let u = |i: usize| y[i][axis] - x[i][axis];
+            let inward = (x[k][other] - mouth[other]).signum();
+            let same_row = |i: usize| (x[i][axis] - x[k][axis]).abs() < 1e-9 * spacing[k];
+            let next = (0..x.len())
+                .filter(|&i| same_row(i) && (x[i][other] - x[k][other]) * inward > 0.0)
+                .min_by(|&a, &b| {
+                    let d = |i: usize| (x[i][other] - x[k][other]).abs();
+                    d(a).total_cmp(&d(b))
+                });
+            match next {
+                Some(n) => {
+                    let slope = (u(n) - u(k)) / (x[n][other] - x[k][other]);
+                    u(k) + slope * (mouth[other] - x[k][other])
+                }
+                None => u(k),
+            }
+        };
         let (up, down) = (nearest(true)?, nearest(false)?);
-        Some((y[up][axis] - x[up][axis]) - (y[down][axis] - x[down][axis]))
+        Some(face(up) - face(down))
     }
 
     /// The bonds as a `Families` view (crack-angle connectivity).
