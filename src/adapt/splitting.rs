@@ -180,11 +180,11 @@ pub fn split(
         // A pre-crack's cut is geometry, not history: the new bond's own crossing (`fitted`
         // below) decides it. Inheriting it would carry the coarse lattice's crack tip (the
         // cut bonds nearest the tip end up to Δ beyond it) into the children.
-        let (xa, xb) = (&reference_of[oa as usize], &reference_of[ob as usize]);
-        if precracks
-            .iter()
-            .any(|c| crosses(c, xa, xb) || crosses(c, xb, xa))
-        {
+        let pre_cut = |c: &CrackGeometry| {
+            let (xa, xb) = (&reference_of[oa as usize], &reference_of[ob as usize]);
+            crosses(c, xa, xb) || crosses(c, xb, xa)
+        };
+        if precracks.iter().any(pre_cut) {
             return 1;
         }
         bonds

@@ -4,7 +4,7 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
-use crate::scene::{CrackGeometry, FamilyRadius};
+use crate::scene::{CrackEnds, CrackGeometry, FamilyRadius};
 
 /// Families of all nodes in compressed sparse rows: node i's neighbors are
 /// `neighbors[offsets[i]..offsets[i + 1]]`, their reference bond lengths `row_lengths(i)`.
@@ -301,7 +301,9 @@ pub fn partial_volume(r: f64, horizon: f64, spacing: f64) -> f64 {
 pub fn crosses(crack: &CrackGeometry, a: &[f64], b: &[f64]) -> bool {
     match crack {
         CrackGeometry::Point(c) => (a[0] - c) * (b[0] - c) < 0.0,
-        CrackGeometry::Segment(p, q) => segments_cross([a[0], a[1]], [b[0], b[1]], *p, *q),
+        CrackGeometry::Segment(p, q, ends) => {
+            segments_cross([a[0], a[1]], [b[0], b[1]], *p, *q, *ends)
+        }
         CrackGeometry::Patch {
             origin,
             edge_a,
@@ -321,7 +323,7 @@ pub fn distance_to_crack(crack: &CrackGeometry, x: &[f64]) -> f64 {
     let norm = |v: &[f64]| v.iter().map(|c| c * c).sum::<f64>().sqrt();
     match crack {
         CrackGeometry::Point(c) => (x[0] - c).abs(),
-        CrackGeometry::Segment(p, q) => {
+        CrackGeometry::Segment(p, q, _) => {
             let d = [q[0] - p[0], q[1] - p[1]];
             let len2 = d[0] * d[0] + d[1] * d[1];
             let t = if len2 > 0.0 {
@@ -393,15 +395,14 @@ fn cross2(o: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
 /// Proper crossing test; a bond end lying exactly on the crack line counts as crossing when the
 /// other end is strictly on one side (so nodes placed on a crack line are cut from one side).
 ///
-/// The crack is the *open* segment: a bond through one of its end points is not cut, and
-/// "through" is decided with a tolerance of 10⁻⁹ of the bond's length, not by the sign of a
-/// rounded product. On a lattice a crack whose tip lies on a symmetry point (a tip at a whole
-/// number of millimetres between cell-centred nodes) has whole pairs of bonds through the tip;
-/// before this rule their cut depended on how "25 mm" and the node coordinates rounded, and
-/// moved the effective tip by about Δ/2 from one crack length to the next (crack-opening
-/// `coarse` at a = 25 mm: mouth opening 25.52 µm with those bonds cut, 24.61 µm without;
-/// docs/results.md, "Crack opening: the tip's tie bonds").
-fn segments_cross(a: [f64; 2], b: [f64; 2], p: [f64; 2], q: [f64; 2]) -> bool {
+/// A bond through one of the crack's end points crosses it when `ends` is closed, not when
+/// open, and "through" is decided with a tolerance of 10⁻⁹ of the bond's length, not by the
+/// sign of a rounded product (which `rounded` keeps: see `CrackEnds`). On a lattice a crack whose tip lies on a symmetry point (a tip
+/// at a whole number of millimetres between cell-centred nodes) has whole pairs of bonds
+/// through the tip; before this rule their cut depended on how "25 mm" and the node
+/// coordinates rounded (crack-opening `coarse` at a = 25 mm: mouth opening 25.52 µm with those
+/// bonds cut, 24.61 µm without; docs/results.md, "Crack opening: the tip's tie bonds").
+fn segments_cross(a: [f64; 2], b: [f64; 2], p: [f64; 2], q: [f64; 2], ends: CrackEnds) -> bool {
     let d1 = cross2(p, q, a);
     let d2 = cross2(p, q, b);
     let d3 = cross2(a, b, p);
@@ -411,7 +412,13 @@ fn segments_cross(a: [f64; 2], b: [f64; 2], p: [f64; 2], q: [f64; 2]) -> bool {
         || (d1 == 0.0) != (d2 == 0.0) && (d1 > 0.0 || d2 > 0.0);
     // |cross2(a, b, p)| = |b − a| × the distance of p from the bond's line.
     let tie = 1e-9 * ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2));
-    straddles_crack && ((d3 > tie && d4 < -tie) || (d3 < -tie && d4 > tie))
+    let through_an_end = d3.abs() <= tie || d4.abs() <= tie;
+    straddles_crack
+        && match ends {
+            CrackEnds::Rounded => (d3 > 0.0) != (d4 > 0.0) || d3 == 0.0 || d4 == 0.0,
+            _ if through_an_end => ends == CrackEnds::Closed,
+            _ => (d3 > 0.0) != (d4 > 0.0),
+        }
 }
 
 fn segment_crosses_patch(
@@ -462,7 +469,7 @@ mod tests {
     fn a_notch_removes_exactly_the_bonds_across_it() {
         let positions: Vec<[f64; 2]> = (0..25).map(|k| [(k / 5) as f64, (k % 5) as f64]).collect();
         let all = Families::build(&positions, 1.5);
-        let notch = CrackGeometry::Segment([2.5, -1.0], [2.5, 6.0]);
+        let notch = CrackGeometry::Segment([2.5, -1.0], [2.5, 6.0], CrackEnds::Rounded);
         let cut = all.without_crossing(&positions, &[notch]);
         assert_eq!(all.bond_count() - cut.bond_count(), 26);
         for i in 0..25 {
@@ -534,20 +541,25 @@ mod tests {
 
     #[test]
     fn crack_crossing() {
-        let crack = CrackGeometry::Segment([0.0, 0.0], [1.0, 0.0]);
+        let crack = CrackGeometry::Segment([0.0, 0.0], [1.0, 0.0], CrackEnds::Rounded);
         assert!(crosses(&crack, &[0.5, -0.1], &[0.5, 0.1]));
         assert!(!crosses(&crack, &[1.5, -0.1], &[1.5, 0.1]));
         assert!(!crosses(&crack, &[0.5, 0.1], &[0.7, 0.2]));
         // A node on the crack line is cut from the upper side only.
         assert!(crosses(&crack, &[0.5, 0.0], &[0.5, 0.1]));
         assert!(!crosses(&crack, &[0.5, 0.0], &[0.5, -0.1]));
-        // Bonds through the crack's end points are not cut, however the coordinates round.
+        // Bonds through the crack's end points are cut (closed) or not (open), however the
+        // coordinates round.
         for tip in [1.0, 1.0 + 1e-16, 1.0 - 1e-16, 0.1 + 0.2 + 0.7] {
-            let crack = CrackGeometry::Segment([0.0, 0.0], [tip, 0.0]);
-            assert!(!crosses(&crack, &[0.9, 0.1], &[1.1, -0.1]));
-            assert!(!crosses(&crack, &[0.7, 0.3], &[1.3, -0.3]));
-            assert!(crosses(&crack, &[0.9, 0.1], &[1.09, -0.1]));
-            assert!(!crosses(&crack, &[-0.1, 0.1], &[0.1, -0.1]));
+            for ends in [CrackEnds::Closed, CrackEnds::Open] {
+                let crack = CrackGeometry::Segment([0.0, 0.0], [tip, 0.0], ends);
+                let closed = ends == CrackEnds::Closed;
+                assert_eq!(crosses(&crack, &[0.9, 0.1], &[1.1, -0.1]), closed);
+                assert_eq!(crosses(&crack, &[0.7, 0.3], &[1.3, -0.3]), closed);
+                assert_eq!(crosses(&crack, &[-0.1, 0.1], &[0.1, -0.1]), closed);
+                assert!(crosses(&crack, &[0.9, 0.1], &[1.09, -0.1]));
+                assert!(!crosses(&crack, &[0.9, 0.1], &[1.11, -0.1]));
+            }
         }
         let patch = CrackGeometry::Patch {
             origin: [0.0, 0.0, 0.0],

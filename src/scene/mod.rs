@@ -21,7 +21,7 @@ use std::path::Path;
 pub use error::SceneError;
 pub use geometry::Solid;
 pub use reference::Reference;
-pub use schema::{BondWeights, CheckSet, FamilyRadius, Physics, Preset, SchemeKind};
+pub use schema::{BondWeights, CheckSet, CrackEnds, FamilyRadius, Physics, Preset, SchemeKind};
 
 use crate::model::pmb::{Influence, PmbConstants};
 
@@ -361,7 +361,7 @@ pub struct SchemeSpec {
 #[derive(Debug, Clone)]
 pub enum CrackGeometry {
     Point(f64),
-    Segment([f64; 2], [f64; 2]),
+    Segment([f64; 2], [f64; 2], CrackEnds),
     Patch {
         origin: [f64; 3],
         edge_a: [f64; 3],

@@ -957,9 +957,10 @@ fn precrack(c: &Precrack, dim: usize, path: &str) -> Result<CrackGeometry, Strin
     match c {
         Precrack::Point { at } if dim == 1 => Ok(CrackGeometry::Point(at.si())),
         Precrack::Point { .. } => wrong("point", 1),
-        Precrack::Segment { from, to } if dim == 2 => Ok(CrackGeometry::Segment(
+        Precrack::Segment { from, to, ends } if dim == 2 => Ok(CrackGeometry::Segment(
             fixed(from, dim, &format!("{path}.segment.from"))?,
             fixed(to, dim, &format!("{path}.segment.to"))?,
+            *ends,
         )),
         Precrack::Segment { .. } => wrong("segment", 2),
         Precrack::Patch {

@@ -867,35 +867,32 @@ fn a_plate_split_everywhere_opens_like_the_fine_lattice() {
 }
 
 /// The pre-crack's tip at a whole number of millimetres lies on a symmetry point of the
-/// cell-centred lattice, with pairs of bonds through it. Those bonds are not cut, whatever
-/// the rounding of the tip's and the particles' coordinates (`family::crosses`), so a tip moved
-/// by 10⁻⁹ mm either way cuts the same bonds; a tip moved by 10⁻³ mm forwards cuts more.
+/// cell-centred lattice, with pairs of bonds through it. Those bonds are left intact (`open`
+/// ends, the preset's) or cut (`closed`), whatever the rounding of the tip's and the
+/// particles' coordinates (`family::crosses`): a tip moved by 10⁻⁹ mm either way cuts the same
+/// bonds; a tip moved by 10⁻³ mm forwards (open) or backwards (closed) changes the cut.
 #[test]
 fn a_crack_tip_on_a_lattice_symmetry_point_cuts_the_same_bonds_however_it_rounds() {
-    let broken = |tip: &str| -> f64 {
-        let crack = format!(
-            r#"precracks=[{{segment={{from=["-1 mm","50 mm"],to=["{tip} mm","50 mm"]}}}}]"#
-        );
-        let scene = Scene::load_with(
-            "crack-opening",
-            Some("small"),
-            &[crack, "refinement.enabled=false".into()],
-        )
-        .unwrap();
-        DualHorizonSimulation::new(&scene)
-            .unwrap()
-            .damage()
-            .iter()
-            .sum()
-    };
-    let at = broken("25");
-    for tip in ["24.999999999", "25.000000001", "25.0000000000000001"] {
-        assert_eq!(broken(tip), at, "tip at {tip} mm");
+    for (ends, moved) in [("open", "25.001"), ("closed", "24.999")] {
+        let broken = |tip: &str| -> f64 {
+            let crack = format!(
+                r#"precracks=[{{segment={{from=["-1 mm","50 mm"],to=["{tip} mm","50 mm"],ends="{ends}"}}}}]"#
+            );
+            let scene = Scene::load_with(
+                "crack-opening",
+                Some("small"),
+                &[crack, "refinement.enabled=false".into()],
+            )
+            .unwrap();
+            let sim = DualHorizonSimulation::new(&scene).unwrap();
+            sim.damage().iter().sum()
+        };
+        let at = broken("25");
+        for tip in ["24.999999999", "25.000000001", "25.0000000000000001"] {
+            assert_eq!(broken(tip), at, "{ends}: tip at {tip} mm");
+        }
+        assert_ne!(broken(moved), at, "{ends}: the bonds through the tip");
     }
-    assert!(
-        broken("25.001") > at,
-        "bonds through the tip are left intact"
-    );
 }
 
 /// α and φ_c act in place (issue 17, live): a stricter α splits fewer particles of the
