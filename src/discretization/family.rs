@@ -395,13 +395,9 @@ fn cross2(o: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
 /// Proper crossing test; a bond end lying exactly on the crack line counts as crossing when the
 /// other end is strictly on one side (so nodes placed on a crack line are cut from one side).
 ///
-/// A bond through one of the crack's end points crosses it when `ends` is closed, not when
-/// open, and "through" is decided with a tolerance of 10⁻⁹ of the bond's length, not by the
-/// sign of a rounded product (which `rounded` keeps: see `CrackEnds`). On a lattice a crack whose tip lies on a symmetry point (a tip
-/// at a whole number of millimetres between cell-centred nodes) has whole pairs of bonds
-/// through the tip; before this rule their cut depended on how "25 mm" and the node
-/// coordinates rounded (crack-opening `coarse` at a = 25 mm: mouth opening 25.52 µm with those
-/// bonds cut, 24.61 µm without; docs/results.md, "Crack opening: the tip's tie bonds").
+/// A bond through one of the crack's end points: see `CrackEnds` (crack-opening `coarse` at
+/// a = 25 mm opens 25.52 µm with those bonds cut, 24.61 µm without; docs/results.md, "Crack
+/// opening: the tip's tie bonds").
 fn segments_cross(a: [f64; 2], b: [f64; 2], p: [f64; 2], q: [f64; 2], ends: CrackEnds) -> bool {
     let d1 = cross2(p, q, a);
     let d2 = cross2(p, q, b);
@@ -410,14 +406,19 @@ fn segments_cross(a: [f64; 2], b: [f64; 2], p: [f64; 2], q: [f64; 2], ends: Crac
     let straddles_crack = (d1 > 0.0 && d2 < 0.0)
         || (d1 < 0.0 && d2 > 0.0)
         || (d1 == 0.0) != (d2 == 0.0) && (d1 > 0.0 || d2 > 0.0);
-    // |cross2(a, b, p)| = |b − a| × the distance of p from the bond's line.
-    let tie = 1e-9 * ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2));
-    let through_an_end = d3.abs() <= tie || d4.abs() <= tie;
+    let ends_apart = (d3 > 0.0) != (d4 > 0.0);
     straddles_crack
         && match ends {
-            CrackEnds::Rounded => (d3 > 0.0) != (d4 > 0.0) || d3 == 0.0 || d4 == 0.0,
-            _ if through_an_end => ends == CrackEnds::Closed,
-            _ => (d3 > 0.0) != (d4 > 0.0),
+            CrackEnds::Rounded => ends_apart || d3 == 0.0 || d4 == 0.0,
+            CrackEnds::Closed | CrackEnds::Open => {
+                // |cross2(a, b, p)| = |b − a| × the distance of p from the bond's line.
+                let tie = 1e-9 * ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2));
+                if d3.abs() <= tie || d4.abs() <= tie {
+                    ends == CrackEnds::Closed
+                } else {
+                    ends_apart
+                }
+            }
         }
 }
 
