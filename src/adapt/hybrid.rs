@@ -181,7 +181,7 @@ impl<const D: usize> Hybrid<D> {
             check_bonds: 0,
             motion: (spec.check != CheckSet::Collocation).then(|| {
                 let reach = families.longest();
-                MotionBound::new(reference, reach)
+                MotionBound::new(reference, reach, families.shortest())
             }),
             epoch_due: false,
             shortest_bond: families.shortest(),
@@ -200,6 +200,18 @@ impl<const D: usize> Hybrid<D> {
         hybrid.damping.rebuild(&hybrid.mask);
         hybrid.rebuild_check_set(families);
         Ok(hybrid)
+    }
+
+    /// The switching filter's lattice-path bound: whether it is in use, and dropping it (the
+    /// cell bound alone; tests and measurements).
+    pub fn uses_lattice_paths(&self) -> bool {
+        self.motion.as_ref().is_some_and(|m| m.on_lattice())
+    }
+
+    pub fn drop_lattice_paths(&mut self) {
+        if let Some(m) = self.motion.as_mut() {
+            m.drop_lattice_paths();
+        }
     }
 
     pub fn mask(&self) -> &[SchemeClass] {

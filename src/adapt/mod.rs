@@ -8,6 +8,7 @@ pub mod bonds;
 pub mod fixed;
 pub mod hybrid;
 pub mod interface;
+pub mod lattice_paths;
 pub mod masks;
 pub mod motion;
 pub mod multiadaptive;

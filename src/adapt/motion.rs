@@ -8,8 +8,15 @@
 //! per cell, |w_j − w_i| ≤ ρ_c + |W_c − W_c'| + ρ_c' ≤ B_c. A node with B_c < μ_i has no bond
 //! that can have reached χ·s0, whatever happened in between: only the others are checked
 //! exactly. Rigid motion cancels (W is subtracted), so quiet regions cost O(1) per node.
+//!
+//! On a lattice (`lattice_paths`) a second bound, √D times the largest motion difference of
+//! lattice neighbours near the cell, also holds where the lattice is fully populated; the
+//! smaller of the two is taken. It does not grow with the cell's size, so a smooth motion
+//! (a strain wave) uses up far less of the slack.
 
 use rayon::prelude::*;
+
+use super::lattice_paths::LatticePaths;
 
 /// The largest share of a node's slack the motion bound may take for an epoch to keep the
 /// slack (less the bound) instead of recomputing it from the node's bonds. On the
@@ -45,11 +52,22 @@ pub struct MotionBound<const D: usize> {
     least_slack: Vec<f64>,
     /// The f the slacks were computed with (None: no epoch yet, or invalidated).
     factor: Option<f64>,
+    /// The nodes' lattice, if they sit on one; per node whether it is tracked, and per cell
+    /// the largest lattice-neighbour motion difference among its tracked nodes (Λ_cell).
+    lattice: Option<LatticePaths<D>>,
+    is_tracked: Vec<bool>,
+    step: Vec<f64>,
+    /// Per node, the motion since the epoch (set by `update`).
+    motion: Vec<[f64; D]>,
+    /// Rounding allowance of one lattice step's motion difference (m).
+    step_rounding: f64,
 }
 
 impl<const D: usize> MotionBound<D> {
-    /// Cells of side `reach` (≥ the longest bond) over the reference positions.
-    pub fn new(reference: &[[f64; D]], reach: f64) -> Self {
+    /// Cells of side `reach` (≥ the longest bond) over the reference positions; `shortest`
+    /// the shortest bond, which the slacks are scaled by and which is the lattice spacing
+    /// where the nodes sit on a lattice.
+    pub fn new(reference: &[[f64; D]], reach: f64, shortest: f64) -> Self {
         let mut lo = [f64::INFINITY; D];
         let mut hi = [f64::NEG_INFINITY; D];
         for x in reference {
@@ -94,7 +112,22 @@ impl<const D: usize> MotionBound<D> {
             cell_nodes[fill[c as usize]] = i as u32;
             fill[c as usize] += 1;
         }
+        let lattice = LatticePaths::detect(reference, shortest, reach, cells, |c| {
+            cell_nodes[cell_offsets[c]..cell_offsets[c + 1]].to_vec()
+        });
+        let scale = reference
+            .iter()
+            .flat_map(|x| x.iter().map(|v| v.abs()))
+            .fold(0.0f64, f64::max)
+            + reach;
         MotionBound {
+            lattice,
+            is_tracked: vec![false; reference.len()],
+            step: vec![0.0; cells],
+            motion: vec![[0.0; D]; reference.len()],
+            // w = y − y_epoch and the difference of two w, each to a unit roundoff of the
+            // coordinates' size.
+            step_rounding: 8.0 * f64::EPSILON * scale,
             cell_size,
             neighbor_offsets,
             cell_of,
@@ -117,6 +150,17 @@ impl<const D: usize> MotionBound<D> {
         self.factor != Some(factor)
     }
 
+    /// Whether the lattice-path bound is in use (the nodes sit on a lattice).
+    pub fn on_lattice(&self) -> bool {
+        self.lattice.is_some()
+    }
+
+    /// Drops the lattice-path bound: the cell bound alone (tests and measurements).
+    pub fn drop_lattice_paths(&mut self) {
+        self.lattice = None;
+        self.step.iter_mut().for_each(|s| *s = 0.0);
+    }
+
     pub fn invalidate(&mut self) {
         self.factor = None;
     }
@@ -129,17 +173,22 @@ impl<const D: usize> MotionBound<D> {
         &mut self,
         positions: &[[f64; D]],
         factor: f64,
-        tracked: impl Fn(usize) -> bool,
+        tracked: impl Fn(usize) -> bool + Sync,
     ) {
         self.epoch.copy_from_slice(positions);
         self.factor = Some(factor);
+        self.is_tracked
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(k, t)| *t = tracked(k));
         self.tracked_nodes.clear();
         self.tracked_offsets.clear();
         self.tracked_offsets.push(0);
         for c in 0..self.cell_offsets.len() - 1 {
             let members = &self.cell_nodes[self.cell_offsets[c]..self.cell_offsets[c + 1]];
+            let is_tracked = &self.is_tracked;
             self.tracked_nodes
-                .extend(members.iter().filter(|&&k| tracked(k as usize)));
+                .extend(members.iter().filter(|&&k| is_tracked[k as usize]));
             self.tracked_offsets.push(self.tracked_nodes.len());
         }
         let (offsets, nodes, slack) = (&self.cell_offsets, &self.cell_nodes, &self.slack);
@@ -233,15 +282,23 @@ impl<const D: usize> MotionBound<D> {
 
     /// Recomputes the per-cell bounds B_c for the motion since the epoch.
     pub fn update(&mut self, positions: &[[f64; D]]) {
-        let (offsets, nodes, epoch) = (&self.tracked_offsets, &self.tracked_nodes, &self.epoch);
-        let motion =
-            |k: usize| -> [f64; D] { std::array::from_fn(|a| positions[k][a] - epoch[k][a]) };
+        let epoch = &self.epoch;
+        self.motion
+            .par_iter_mut()
+            .zip(positions.par_iter().zip(epoch))
+            .with_min_len(4096)
+            .for_each(|(w, (y, e))| *w = std::array::from_fn(|a| y[a] - e[a]));
+        let (offsets, nodes, motion) = (&self.tracked_offsets, &self.tracked_nodes, &self.motion);
+        let (lattice, is_tracked) = (&self.lattice, &self.is_tracked);
         self.representative
             .par_iter_mut()
             .zip(self.spread.par_iter_mut())
+            .zip(self.step.par_iter_mut())
             .enumerate()
-            .for_each(|(c, (rep, spread))| {
+            .with_min_len(16)
+            .for_each(|(c, ((rep, spread), step))| {
                 let members = &nodes[offsets[c]..offsets[c + 1]];
+                *step = 0.0;
                 if members.is_empty() {
                     *spread = 0.0;
                     return;
@@ -253,7 +310,7 @@ impl<const D: usize> MotionBound<D> {
                 // Σ w is non-finite if any w is (or overflows: then conservatively so too).
                 let mut sum = 0.0;
                 for &k in members {
-                    let w = motion(k as usize);
+                    let w = motion[k as usize];
                     for a in 0..D {
                         lo[a] = if w[a] < lo[a] { w[a] } else { lo[a] };
                         hi[a] = if w[a] > hi[a] { w[a] } else { hi[a] };
@@ -273,9 +330,21 @@ impl<const D: usize> MotionBound<D> {
                 } else {
                     f64::NAN
                 };
+                // Λ_cell: the largest step among the tracked members (a non-finite motion
+                // already made the spread NaN, which poisons every bound near it).
+                if let Some(lattice) = lattice
+                    && finite
+                {
+                    let largest2 = members
+                        .iter()
+                        .map(|&k| lattice.step2_of(k as usize, is_tracked, motion))
+                        .fold(0.0, f64::max);
+                    *step = largest2.sqrt();
+                }
             });
         let (reps, spread, least) = (&self.representative, &self.spread, &self.least_slack);
         let neighbors = &self.neighbor_offsets;
+        let (lattice, step, rounding) = (&self.lattice, &self.step, self.step_rounding);
         self.bound
             .par_iter_mut()
             .enumerate()
@@ -299,7 +368,30 @@ impl<const D: usize> MotionBound<D> {
                         };
                     }
                 }
-                *bound = spread[c] + far;
+                let cells = spread[c] + far;
+                *bound = match lattice {
+                    Some(lattice) if lattice.complete[c] => {
+                        let mut largest = 0.0f64;
+                        for &offset in neighbors {
+                            let s = step[c.wrapping_add_signed(offset)];
+                            largest = if s.is_nan() || s > largest {
+                                s
+                            } else {
+                                largest
+                            };
+                        }
+                        // |w_j − w_i| ≤ √D (l/h) Λ for every checked bond of the cell's nodes,
+                        // so each stretch ratio moved by ≤ √D Λ / h ≤ that over the shortest
+                        // bond (`lattice_paths`): in the slacks' units, √D Λ.
+                        let paths = (D as f64).sqrt() * (largest + rounding) * (1.0 + 1e-12);
+                        if cells.is_nan() || paths.is_nan() {
+                            f64::NAN
+                        } else {
+                            cells.min(paths)
+                        }
+                    }
+                    _ => cells,
+                };
             });
     }
 
@@ -323,4 +415,98 @@ fn distance2<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
 
 fn distance<const D: usize>(a: &[f64; D], b: &[f64; D]) -> f64 {
     distance2(a, b).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::discretization::Families;
+    use crate::discretization::grid::SplitMix64;
+
+    /// The bound is rigorous: on a 2D lattice (Δx = 1, horizon 3.015) under a smooth wave with
+    /// noise, and with a jump across a line (an opening crack), every bond's change of
+    /// length |w_j − w_i| stays below its node's cell bound times l_ij / l_min (the slacks'
+    /// units); and on the smooth field the lattice-path bound is the tighter one.
+    #[test]
+    fn every_bonds_change_of_length_is_within_its_cells_bound() {
+        let n = 40;
+        let x: Vec<[f64; 2]> = (0..n * n)
+            .map(|k| [0.5 + (k % n) as f64, 0.5 + (k / n) as f64])
+            .collect();
+        let families = Families::build(&x, 3.015);
+        let mut rng = SplitMix64(17);
+        let smooth = |p: &[f64; 2]| {
+            [
+                1e-3 * (0.3 * p[0]).sin(),
+                2e-3 * (0.2 * p[1] + 0.1 * p[0]).cos(),
+            ]
+        };
+        // A smooth wave with noise, the same with a jump across y = 17 (an opening crack), and
+        // w = a (x + y) ê, where a diagonal bond's change meets the bound (|q|₁ = √2 |q|₂).
+        for (case, jump) in [("smooth", 0.0), ("jump", 5e-2), ("staircase", 0.0)] {
+            let y: Vec<[f64; 2]> = x
+                .iter()
+                .map(|p| {
+                    if case == "staircase" {
+                        let w = 1e-3 * (p[0] + p[1]);
+                        return [p[0] + 0.6 * w, p[1] + 0.8 * w];
+                    }
+                    let s = smooth(p);
+                    let noise = [1e-5 * (rng.next_f64() - 0.5), 1e-5 * (rng.next_f64() - 0.5)];
+                    let crack = if p[1] > 17.0 { jump } else { 0.0 };
+                    [p[0] + s[0] + noise[0], p[1] + s[1] + noise[1] + crack]
+                })
+                .collect();
+            let mut bound = MotionBound::new(&x, families.longest(), families.shortest());
+            assert!(bound.on_lattice());
+            bound.slack.iter_mut().for_each(|s| *s = 1.0);
+            bound.start_epoch(&x, 1.0, |_| true);
+            bound.update(&y);
+            let mut tighter = 0;
+            let mut complete = 0;
+            let mut tightest = 0.0f64;
+            for i in 0..x.len() {
+                let c = bound.cell_of[i] as usize;
+                let b = bound.bound[c];
+                for k in families.range(i) {
+                    let j = families.neighbors[k] as usize;
+                    let l = families.length(i, k);
+                    let w: [f64; 2] =
+                        std::array::from_fn(|a| (y[j][a] - x[j][a]) - (y[i][a] - x[i][a]));
+                    let change = (w[0] * w[0] + w[1] * w[1]).sqrt() / l * families.shortest();
+                    assert!(
+                        change <= b,
+                        "{case}: node {i}, bond to {j}: {change:e} > {b:e}"
+                    );
+                    tightest = tightest.max(change / b);
+                }
+                if bound.lattice.as_ref().unwrap().complete[c] {
+                    complete += 1;
+                    let occupied =
+                        |d: usize| bound.tracked_offsets[d] < bound.tracked_offsets[d + 1];
+                    let far = bound
+                        .neighbor_offsets
+                        .iter()
+                        .map(|&o| c.wrapping_add_signed(o))
+                        .filter(|&d| occupied(d))
+                        .map(|d| {
+                            bound.spread[d]
+                                + distance(&bound.representative[d], &bound.representative[c])
+                        })
+                        .fold(0.0, f64::max);
+                    let cells = bound.spread[c] + far;
+                    if b < 0.5 * cells {
+                        tighter += 1;
+                    }
+                }
+            }
+            assert!(complete > x.len() / 4, "{complete} nodes in complete cells");
+            if jump == 0.0 {
+                assert_eq!(
+                    tighter, complete,
+                    "the lattice-path bound is at least 2× tighter"
+                );
+            }
+        }
+    }
 }

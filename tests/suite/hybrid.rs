@@ -349,10 +349,11 @@ fn collocation_check_policy_repairs_damage_that_reached_omega_w() {
     assert_eq!(sim.enforce_hybrid_invariant(), 0, "all repaired");
 }
 
-/// The motion-bound filter of the switching check is exact: with it (the default, epochs
-/// keeping quiet nodes' slacks) and without it (every check visits every bond), the Ω_s mask
-/// is the same after every step, for the `all` and `near` policies, and the filter does skip
-/// most checks' work.
+/// The motion-bound filter of the switching check is exact: with it (the default: the cell
+/// bound and the lattice-path bound, epochs keeping quiet nodes' slacks), with the cell bound
+/// alone, and without any (every check visits every bond), the Ω_s mask is the same after
+/// every step, for the `all` and `near` policies; the filter does skip most checks' work, and
+/// the lattice-path bound needs fewer epochs than the cell bound alone.
 #[test]
 fn motion_filtered_check_switches_exactly_like_the_exhaustive_check() {
     for check in ["all", "near"] {
@@ -362,26 +363,36 @@ fn motion_filtered_check_switches_exactly_like_the_exhaustive_check() {
             &[&format!("hybrid.check=\"{check}\"")],
         );
         let mut filtered = DynamicSimulation::<2>::new(&scene).unwrap();
+        let mut cells_only = DynamicSimulation::<2>::new(&scene).unwrap();
         let mut exhaustive = DynamicSimulation::<2>::new(&scene).unwrap();
+        assert!(filtered.hybrid.as_ref().unwrap().uses_lattice_paths());
+        cells_only.hybrid.as_mut().unwrap().drop_lattice_paths();
         exhaustive.hybrid.as_mut().unwrap().exhaustive = true;
         for step in 0..filtered.clock().total_steps() {
-            filtered.step().unwrap();
-            exhaustive.step().unwrap();
-            let (a, b) = (filtered.hybrid.as_ref(), exhaustive.hybrid.as_ref());
-            assert!(
-                a.unwrap().mask() == b.unwrap().mask(),
-                "{check}: masks differ after step {}",
-                step + 1
-            );
+            for sim in [&mut filtered, &mut cells_only, &mut exhaustive] {
+                sim.step().unwrap();
+            }
+            let e = exhaustive.hybrid.as_ref().unwrap().mask();
+            for (name, sim) in [("both bounds", &filtered), ("cell bound", &cells_only)] {
+                assert!(
+                    sim.hybrid.as_ref().unwrap().mask() == e,
+                    "{check}, {name}: masks differ after step {}",
+                    step + 1
+                );
+            }
         }
         let h = filtered.hybrid.as_ref().unwrap();
+        let c = cells_only.hybrid.as_ref().unwrap();
         let e = exhaustive.hybrid.as_ref().unwrap();
         eprintln!(
-            "{check}: {} full and {} filtered checks; bonds visited {} against {}; {} slacks kept \
-             by epochs; Ω_s {:.4}",
+            "{check}: {} full and {} filtered checks ({} full with the cell bound alone); bonds \
+             visited {} ({} with the cell bound, {} exhaustive); {} slacks kept by epochs; Ω_s \
+             {:.4}",
             h.full_checks,
             h.filtered_checks,
+            c.full_checks,
             h.checked_bonds,
+            c.checked_bonds,
             e.checked_bonds,
             h.reused_slacks,
             h.standard_fraction()
@@ -393,7 +404,9 @@ fn motion_filtered_check_switches_exactly_like_the_exhaustive_check() {
         assert!(h.standard_fraction() > h.initial_standard_fraction());
         assert!(h.filtered_checks > h.full_checks);
         assert!(h.checked_bonds < e.checked_bonds / 2);
+        assert!(h.full_checks < c.full_checks);
         assert_eq!(filtered.broken_bonds(), exhaustive.broken_bonds());
+        assert_eq!(cells_only.broken_bonds(), exhaustive.broken_bonds());
     }
 }
 
