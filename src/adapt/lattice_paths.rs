@@ -47,7 +47,8 @@ impl<const D: usize> LatticePaths<D> {
             for a in 0..D {
                 let q = (x[a] - origin[a]) / spacing;
                 let r = q.round();
-                if !((q - r).abs() <= OFF_LATTICE) {
+                // A NaN coordinate fails too.
+                if (q - r).abs().partial_cmp(&OFF_LATTICE) != Some(std::cmp::Ordering::Less) {
                     return None;
                 }
                 p[a] = r as i64;
@@ -91,13 +92,13 @@ impl<const D: usize> LatticePaths<D> {
         // Summed occupancy: filled[index(p)] = number of nodes in the box lo ..= p.
         let mut filled: Vec<u32> = grid.iter().map(|&k| u32::from(k != u32::MAX)).collect();
         let mut stride = 1usize;
-        for a in 0..D {
+        for &extent in &dims {
             for s in 0..total {
-                if (s / stride) % dims[a] > 0 {
+                if !(s / stride).is_multiple_of(extent) {
                     filled[s] += filled[s - stride];
                 }
             }
-            stride *= dims[a];
+            stride *= extent;
         }
         let box_count = |from: [i64; D], to: [i64; D]| -> u64 {
             // Inclusion–exclusion over the 2^D corners of the box from ..= to.

@@ -7,6 +7,8 @@
 //! estimated with a power iteration on the operator itself, which also serves operators that
 //! are not symmetric (the WLS scheme, seed-thesis-ch2-3 §2.2).
 
+use rayon::prelude::*;
+
 use crate::discretization::grid::SplitMix64;
 
 /// The most operator applications a stable-step estimate of a symmetric operator makes
@@ -189,19 +191,23 @@ pub fn arnoldi_spectral_radius(
     for j in 0..dimension {
         let mut w = vec![0.0; n];
         apply(&basis[j], &mut w);
-        for (i, v) in basis.iter().enumerate() {
-            let h: f64 = v.iter().zip(&w).map(|(a, b)| a * b).sum();
+        // Modified Gram–Schmidt, each subtraction fused with the next inner product.
+        let mut h = inner_product(&basis[0], &w);
+        for i in 0..=j {
             hessenberg[(i, j)] = h;
-            w.iter_mut().zip(v).for_each(|(w, v)| *w -= h * v);
+            h = subtract_then_inner(&mut w, h, &basis[i], basis.get(i + 1).map(Vec::as_slice));
         }
-        let beta = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+        // The last pass returned w·w.
+        let beta = h.sqrt();
         hessenberg[(j + 1, j)] = beta;
         size = j + 1;
         let scale = hessenberg.column(j).amax();
         if !beta.is_finite() || beta <= 1e-12 * scale {
             break;
         }
-        w.iter_mut().for_each(|x| *x /= beta);
+        w.par_iter_mut()
+            .with_min_len(INNER_CHUNK)
+            .for_each(|x| *x /= beta);
         basis.push(w);
     }
     let square = hessenberg.view((0, 0), (size, size)).into_owned();
@@ -210,6 +216,38 @@ pub fn arnoldi_spectral_radius(
         .iter()
         .map(|z| z.norm())
         .fold(0.0, f64::max)
+}
+
+/// Elements per partial sum of Arnoldi's inner products: fixed, so the sums, and the stable
+/// steps drawn from them, are the same bits on any number of threads.
+const INNER_CHUNK: usize = 4096;
+
+/// a·b in parallel, summed in fixed chunks in order (thread-count independent).
+fn inner_product(a: &[f64], b: &[f64]) -> f64 {
+    let partial: Vec<f64> = a
+        .par_chunks(INNER_CHUNK)
+        .zip(b.par_chunks(INNER_CHUNK))
+        .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
+        .collect();
+    partial.iter().sum()
+}
+
+/// w ← w − h v, then the inner product of the new w with `next` (with itself if none), in
+/// one pass over the vectors, summed as `inner_product` sums.
+fn subtract_then_inner(w: &mut [f64], h: f64, v: &[f64], next: Option<&[f64]>) -> f64 {
+    let partial: Vec<f64> = w
+        .par_chunks_mut(INNER_CHUNK)
+        .zip(v.par_chunks(INNER_CHUNK))
+        .enumerate()
+        .map(|(c, (w, v))| {
+            for (x, y) in w.iter_mut().zip(v) {
+                *x -= h * y;
+            }
+            let other = next.map_or(&*w, |u| &u[c * INNER_CHUNK..c * INNER_CHUNK + w.len()]);
+            w.iter().zip(other).map(|(x, y)| x * y).sum::<f64>()
+        })
+        .collect();
+    partial.iter().sum()
 }
 
 /// The margin kept on an eigenvalue or spectral radius found by power iteration (which
