@@ -15,7 +15,6 @@
 /// (of the motion bound's grid) whether the lattice is fully populated within reach of every
 /// node of the cell.
 pub struct LatticePaths<const D: usize> {
-    pub spacing: f64,
     /// Per node and axis, the node one lattice step up (u32::MAX: none).
     up: Vec<[u32; D]>,
     /// Per cell: every lattice point within reach of the cell's nodes is a node.
@@ -30,12 +29,12 @@ const SPARSE: usize = 8;
 impl<const D: usize> LatticePaths<D> {
     /// The lattice of spacing `spacing` through the first node, if every node sits on it (one
     /// node per point); `reach` the longest bond; `cell_nodes(c)` lists cell c's nodes.
-    pub fn detect(
+    pub fn detect<'a>(
         reference: &[[f64; D]],
         spacing: f64,
         reach: f64,
         cells: usize,
-        cell_nodes: impl Fn(usize) -> Vec<u32>,
+        cell_nodes: impl Fn(usize) -> &'a [u32],
     ) -> Option<Self> {
         let origin = *reference.first()?;
         if !(spacing > 0.0 && spacing.is_finite()) {
@@ -129,7 +128,7 @@ impl<const D: usize> LatticePaths<D> {
                 }
                 let mut from = [i64::MAX; D];
                 let mut to = [i64::MIN; D];
-                for &k in &members {
+                for &k in members {
                     for a in 0..D {
                         from[a] = from[a].min(points[k as usize][a] - radius);
                         to[a] = to[a].max(points[k as usize][a] + radius);
@@ -140,11 +139,7 @@ impl<const D: usize> LatticePaths<D> {
                 inside && box_count(from, to) == volume
             })
             .collect();
-        Some(LatticePaths {
-            spacing,
-            up,
-            complete,
-        })
+        Some(LatticePaths { up, complete })
     }
 
     /// Node k's largest |w_k' − w_k|² over its up-neighbours k' (both `tracked`), w the
@@ -182,8 +177,13 @@ mod tests {
         // Cells of 3 × 3 nodes; reach 2: only the centre 2 × 2 cells have every point within
         // 2 of their nodes inside the 12 × 12 square.
         let cell_of = |k: usize| (k % 12) / 3 + 4 * ((k / 12) / 3);
-        let nodes = |c: usize| (0..144u32).filter(|&k| cell_of(k as usize) == c).collect();
-        let lattice = LatticePaths::detect(&x, 1.0, 2.0, 16, nodes).expect("a lattice");
+        let lists = |count: u32, cell: &dyn Fn(usize) -> usize| -> Vec<Vec<u32>> {
+            (0..16)
+                .map(|c| (0..count).filter(|&k| cell(k as usize) == c).collect())
+                .collect()
+        };
+        let cells = lists(144, &cell_of);
+        let lattice = LatticePaths::detect(&x, 1.0, 2.0, 16, |c| &cells[c][..]).expect("a lattice");
         assert_eq!(lattice.up[0], [1, 12]);
         assert_eq!(lattice.up[11], [u32::MAX, 23]);
         let complete: Vec<usize> = (0..16).filter(|&c| lattice.complete[c]).collect();
@@ -191,19 +191,16 @@ mod tests {
         // A hole at node 5 · 12 + 5 spoils the cells within reach of it.
         let holed: Vec<[f64; 2]> = x.iter().copied().filter(|p| *p != [5.5, 5.5]).collect();
         let shift = |k: usize| if k >= 65 { k + 1 } else { k };
-        let nodes = |c: usize| {
-            (0..143u32)
-                .filter(|&k| cell_of(shift(k as usize)) == c)
-                .collect()
-        };
-        let lattice = LatticePaths::detect(&holed, 1.0, 2.0, 16, nodes).expect("a lattice");
+        let cells = lists(143, &|k| cell_of(shift(k)));
+        let lattice =
+            LatticePaths::detect(&holed, 1.0, 2.0, 16, |c| &cells[c][..]).expect("a lattice");
         assert!((0..16).all(|c| !lattice.complete[c]));
     }
 
     #[test]
     fn off_lattice_or_doubled_points_are_not_a_lattice() {
         let mut x = square(6);
-        let nodes = |_: usize| Vec::new();
+        let nodes = |_: usize| &[][..];
         assert!(LatticePaths::detect(&x, 1.0, 1.0, 0, nodes).is_some());
         x[7][0] += 1e-3;
         assert!(LatticePaths::detect(&x, 1.0, 1.0, 0, nodes).is_none());

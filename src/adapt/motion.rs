@@ -113,7 +113,7 @@ impl<const D: usize> MotionBound<D> {
             fill[c as usize] += 1;
         }
         let lattice = LatticePaths::detect(reference, shortest, reach, cells, |c| {
-            cell_nodes[cell_offsets[c]..cell_offsets[c + 1]].to_vec()
+            &cell_nodes[cell_offsets[c]..cell_offsets[c + 1]]
         });
         let scale = reference
             .iter()

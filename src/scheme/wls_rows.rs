@@ -95,9 +95,8 @@ impl<const D: usize> WlsRows<D> {
 
     /// The linearized operator per unit mass on the `live` rows, −K u / ρ (the sign of the
     /// standard scheme's `apply_linearized`), other rows untouched; for stable-step estimates.
-    /// The product runs on the translation runs as the forces do (the Kalthoff–Winkler paper
-    /// grid's 40 Arnoldi applications took 3.5 s row by row), on component copies of u made per
-    /// call (a setup path: allocation is fine here).
+    /// The product runs on the translation runs as the forces do, on component copies of u
+    /// made per call (a setup path: allocation is fine here).
     pub fn apply_linearized(
         &self,
         u: &[[f64; D]],
