@@ -110,3 +110,75 @@ pub fn lanes(v: __m512d) -> [f64; 8] {
     unsafe { _mm512_storeu_pd(out.as_mut_ptr(), v) };
     out
 }
+
+/// AVX2: the 4-lane hand-written kernels (`scheme::standard`'s force loop,
+/// `adapt::bonds`' switching scan) on machines without AVX-512.
+#[cfg(target_arch = "x86_64")]
+pub fn avx2() -> bool {
+    std::arch::is_x86_feature_detected!("avx2")
+}
+
+/// The coordinates of nodes `nodes[..4]` of `values` (`D` = 2 or 3 doubles per node) as `D`
+/// 4-lane vectors, lane l holding node `nodes[l]`: `gather8` for AVX2. 2D: one 2-lane load
+/// per node, 2 inserts and 2 unpacks; 3D: one masked 3-lane load per node (the fourth lane
+/// never read), 4 unpacks and 3 lane permutes.
+///
+/// # Safety
+/// AVX2 is available, and every index in `nodes[..4]` is a node of `values`.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx2")]
+pub unsafe fn gather4<const D: usize>(values: &[f64], nodes: &[u32]) -> [__m256d; D] {
+    let p = values.as_ptr();
+    let mut out = [_mm256_setzero_pd(); D];
+    if D == 2 {
+        macro_rules! two {
+            ($a:expr, $b:expr) => {
+                // SAFETY: the caller guarantees the indices (2 doubles per node).
+                unsafe {
+                    _mm256_insertf128_pd::<1>(
+                        _mm256_castpd128_pd256(_mm_loadu_pd(p.add(2 * nodes[$a] as usize))),
+                        _mm_loadu_pd(p.add(2 * nodes[$b] as usize)),
+                    )
+                }
+            };
+        }
+        // [x0 y0 x2 y2] and [x1 y1 x3 y3]
+        let (even, odd) = (two!(0, 2), two!(1, 3));
+        out[0] = _mm256_unpacklo_pd(even, odd);
+        out[1] = _mm256_unpackhi_pd(even, odd);
+    } else {
+        assert_eq!(D, 3);
+        let first_three = _mm256_set_epi64x(0, -1, -1, -1);
+        macro_rules! one {
+            ($a:expr) => {
+                // SAFETY: the caller guarantees the index; lane 4 is masked off
+                // (fault-suppressed, never read).
+                unsafe { _mm256_maskload_pd(p.add(3 * nodes[$a] as usize), first_three) }
+            };
+        }
+        // t_l = [x_l y_l z_l 0]
+        let (t0, t1, t2, t3) = (one!(0), one!(1), one!(2), one!(3));
+        // [x0 x1 z0 z1], [y0 y1 0 0], [x2 x3 z2 z3], [y2 y3 0 0]
+        let (lo01, hi01) = (_mm256_unpacklo_pd(t0, t1), _mm256_unpackhi_pd(t0, t1));
+        let (lo23, hi23) = (_mm256_unpacklo_pd(t2, t3), _mm256_unpackhi_pd(t2, t3));
+        out[0] = _mm256_permute2f128_pd::<0x20>(lo01, lo23);
+        out[1] = _mm256_permute2f128_pd::<0x20>(hi01, hi23);
+        out[2] = _mm256_permute2f128_pd::<0x31>(lo01, lo23);
+    }
+    out
+}
+
+/// The 4 lanes as an array.
+///
+/// # Safety
+/// AVX is available (a safe call from code compiled with it).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx")]
+pub fn lanes4(v: __m256d) -> [f64; 4] {
+    let mut out = [0.0; 4];
+    // SAFETY: 4 doubles into an array of 4.
+    unsafe { _mm256_storeu_pd(out.as_mut_ptr(), v) };
+    out
+}

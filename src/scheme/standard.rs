@@ -13,6 +13,8 @@ use crate::model::pmb::{PmbLaw, influence};
 use crate::scheme::{RowMask, ScalarOperator};
 
 #[cfg(target_arch = "x86_64")]
+mod avx2;
+#[cfg(target_arch = "x86_64")]
 mod avx512;
 
 /// What the force loop produces per node.
@@ -129,20 +131,25 @@ impl<const D: usize> Standard<'_, D> {
         #[cfg(target_arch = "x86_64")]
         if let Some(v) = self.uniform_volume
             && (D == 2 || D == 3)
-            && crate::simd::avx512_kernels_available()
+            && let Some(kernel) = hand_kernel()
         {
-            return avx512::forces(
-                &rows,
-                intact,
-                terms,
-                BondWeight::of(law, quadrature),
-                v,
-                (
-                    law.influence == Influence::Linear,
-                    quadrature.volume_correction,
-                    energy,
-                ),
+            let weight = BondWeight::of(law, quadrature);
+            let flags = (
+                law.influence == Influence::Linear,
+                quadrature.volume_correction,
+                energy,
             );
+            // SAFETY: `hand_kernel` detected the kernel's instruction set; D is 2 or 3.
+            return unsafe {
+                match kernel {
+                    HandKernelSet::Avx512 => {
+                        hand_forces::<avx512::Avx512, D, M>(&rows, intact, terms, weight, v, flags)
+                    }
+                    HandKernelSet::Avx2 => {
+                        hand_forces::<avx2::Avx2, D, M>(&rows, intact, terms, weight, v, flags)
+                    }
+                }
+            };
         }
         self.with_bond_law(GatherLoop {
             rows: &rows,
@@ -299,37 +306,117 @@ impl<const D: usize> Standard<'_, D> {
         skip: impl Fn(usize) -> bool + Sync,
     ) {
         let (families, reference) = (self.families, self.reference);
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = crate::simd::avx2();
         out.par_iter_mut()
             .enumerate()
             .with_min_len(256)
             .filter(|(i, _)| !skip(*i))
             .for_each(|(i, o)| {
                 let range = families.range(i);
-                let row = match coefficients {
-                    Linearized::PerBond(c) => &c[range.clone()],
-                    Linearized::PerLength(c) => families.row_values(c, i),
+                let row = LinearizedRow {
+                    i,
+                    neighbors: &families.neighbors[range.clone()],
+                    states: &intact[range.clone()],
+                    coefficients: match coefficients {
+                        Linearized::PerBond(c) => &c[range],
+                        Linearized::PerLength(c) => families.row_values(c, i),
+                    },
                 };
-                let mut acc = [0.0; D];
-                let bonds = families.neighbors[range.clone()].iter().zip(&intact[range]);
-                for ((&j, &state), &coefficient) in bonds.zip(row) {
-                    if state == 0 {
-                        continue;
-                    }
-                    let j = j as usize;
-                    let mut xi = [0.0; D];
-                    let mut proj = 0.0;
-                    for k in 0..D {
-                        xi[k] = reference[j][k] - reference[i][k];
-                        proj += xi[k] * (u[i][k] - u[j][k]);
-                    }
-                    let scale = coefficient * proj;
-                    for k in 0..D {
-                        acc[k] += scale * xi[k];
-                    }
+                #[cfg(target_arch = "x86_64")]
+                if avx2 {
+                    // SAFETY: AVX2 was detected above.
+                    *o = unsafe { linearized_row_avx2(&row, reference, u) };
+                    return;
                 }
-                *o = acc;
+                *o = linearized_row::<D, LANES>(&row, reference, u);
             });
     }
+}
+
+/// One row of [`Standard::apply_linearized`]: node i's bonds, their states and coefficients.
+struct LinearizedRow<'a> {
+    i: usize,
+    neighbors: &'a [u32],
+    states: &'a [u8],
+    coefficients: &'a [f64],
+}
+
+/// Σ_j c_ij ((ξ · (u_i − u_j)) ξ over the row's intact bonds, `N` bonds together (a broken
+/// bond's coefficient counts as 0), the remainder one by one. The lane loops compile to
+/// SIMD arithmetic; the gathers stay scalar.
+#[inline(always)]
+fn linearized_row<const D: usize, const N: usize>(
+    row: &LinearizedRow,
+    reference: &[[f64; D]],
+    u: &[[f64; D]],
+) -> [f64; D] {
+    let (x_i, u_i) = (reference[row.i], u[row.i]);
+    let blocked = row.neighbors.len() / N * N;
+    let mut acc_lanes = [[0.0; N]; D];
+    for ((nb, st), co) in row.neighbors[..blocked]
+        .chunks_exact(N)
+        .zip(row.states[..blocked].chunks_exact(N))
+        .zip(row.coefficients[..blocked].chunks_exact(N))
+    {
+        let mut xi = [[0.0; N]; D];
+        let mut du = [[0.0; N]; D];
+        for l in 0..N {
+            let j = nb[l] as usize;
+            for k in 0..D {
+                xi[k][l] = reference[j][k] - x_i[k];
+                du[k][l] = u_i[k] - u[j][k];
+            }
+        }
+        let mut scale = [0.0; N];
+        for l in 0..N {
+            let mut proj = xi[0][l] * du[0][l];
+            for k in 1..D {
+                proj += xi[k][l] * du[k][l];
+            }
+            scale[l] = if st[l] != 0 { co[l] * proj } else { 0.0 };
+        }
+        for k in 0..D {
+            for l in 0..N {
+                acc_lanes[k][l] += scale[l] * xi[k][l];
+            }
+        }
+    }
+    let mut acc = [0.0; D];
+    for k in 0..D {
+        acc[k] = acc_lanes[k].iter().sum();
+    }
+    let tail = row.neighbors[blocked..]
+        .iter()
+        .zip(&row.states[blocked..])
+        .zip(&row.coefficients[blocked..]);
+    for ((&j, &state), &coefficient) in tail {
+        if state == 0 {
+            continue;
+        }
+        let j = j as usize;
+        let xi: [f64; D] = std::array::from_fn(|k| reference[j][k] - x_i[k]);
+        let mut proj = xi[0] * (u_i[0] - u[j][0]);
+        for k in 1..D {
+            proj += xi[k] * (u_i[k] - u[j][k]);
+        }
+        let scale = coefficient * proj;
+        for k in 0..D {
+            acc[k] += scale * xi[k];
+        }
+    }
+    acc
+}
+
+/// `linearized_row` at 4 lanes compiled for AVX2 (no FMA: the portable loop's bits).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx,avx2")]
+fn linearized_row_avx2<const D: usize>(
+    row: &LinearizedRow,
+    reference: &[[f64; D]],
+    u: &[[f64; D]],
+) -> [f64; D] {
+    linearized_row::<D, LANES>(row, reference, u)
 }
 
 /// The linearized operator's coefficients ([`Standard::linearized`]).
@@ -559,6 +646,94 @@ rows_build!(
     "avx512f,avx512vl,avx512dq",
     WIDE_LANES
 );
+
+/// The hand-written force kernels (2D and 3D scenes with one volume): the widest this CPU
+/// runs.
+#[cfg(target_arch = "x86_64")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum HandKernelSet {
+    /// 8 lanes (`avx512`); bit-identical to the portable 8-lane loop.
+    Avx512,
+    /// 4 lanes (`avx2`); bit-identical to the portable 4-lane loop.
+    Avx2,
+}
+
+#[cfg(target_arch = "x86_64")]
+fn hand_kernel() -> Option<HandKernelSet> {
+    if crate::simd::avx512_kernels_available() {
+        Some(HandKernelSet::Avx512)
+    } else if crate::simd::avx2() {
+        Some(HandKernelSet::Avx2)
+    } else {
+        None
+    }
+}
+
+/// A hand-written force kernel of one instruction set: one task's rows of the gather loop,
+/// bond weight ω c β V by the const parameters, V = `volume` for every node.
+#[cfg(target_arch = "x86_64")]
+trait HandKernel {
+    /// # Safety
+    /// The kernel's instruction set is available and `D` is 2 or 3.
+    unsafe fn rows<
+        const D: usize,
+        const LINEAR: bool,
+        const BETA: bool,
+        const ENERGY: bool,
+        M: RowMask,
+    >(
+        rows: &Rows<D, M>,
+        terms: &mut [NodeTerms<D>],
+        state: &mut [u8],
+        weight: &BondWeight,
+        volume: f64,
+    ) -> u64;
+}
+
+/// The force loop over all rows with kernel `K` (`Standard::forces_masked` on a 2D or 3D
+/// scene with uniform volumes). Returns the directed bonds broken.
+///
+/// # Safety
+/// `K`'s instruction set is available and `D` is 2 or 3.
+#[cfg(target_arch = "x86_64")]
+unsafe fn hand_forces<K: HandKernel, const D: usize, M: RowMask>(
+    rows: &Rows<D, M>,
+    intact: &mut [u8],
+    terms: &mut [NodeTerms<D>],
+    weight: BondWeight,
+    volume: f64,
+    (linear, beta, energy): (bool, bool, bool),
+) -> u64 {
+    macro_rules! run {
+        ($linear:literal, $beta:literal, $energy:literal) => {
+            split_rows(
+                rows.families,
+                0,
+                terms,
+                intact,
+                &|first: usize, terms: &mut [NodeTerms<D>], state: &mut [u8]| -> u64 {
+                    let block = Rows { first, ..*rows };
+                    // SAFETY: the caller guarantees the instruction set and D.
+                    unsafe {
+                        K::rows::<D, $linear, $beta, $energy, M>(
+                            &block, terms, state, &weight, volume,
+                        )
+                    }
+                },
+            )
+        };
+    }
+    match (linear, beta, energy) {
+        (false, true, true) => run!(false, true, true),
+        (false, false, true) => run!(false, false, true),
+        (true, true, true) => run!(true, true, true),
+        (true, false, true) => run!(true, false, true),
+        (false, true, false) => run!(false, true, false),
+        (false, false, false) => run!(false, false, false),
+        (true, true, false) => run!(true, true, false),
+        (true, false, false) => run!(true, false, false),
+    }
+}
 
 /// Whether the AVX-512 force loop can run here.
 #[cfg(target_arch = "x86_64")]
@@ -909,13 +1084,14 @@ mod tests {
         }
     }
 
-    /// The hand-written AVX-512 kernel (2D and 3D, uniform volumes) gives the portable 8-lane
-    /// loop's bits for every influence and partial-volume choice, with a spacing and volume
-    /// other than 1 (so no product by 1 hides a wrong operand order) and bonds breaking.
+    /// The hand-written kernel this CPU runs (AVX-512 or AVX2; 2D and 3D, uniform volumes)
+    /// gives the portable loop's bits at its lane count (8 or 4) for every influence and
+    /// partial-volume choice, with a spacing and volume other than 1 (so no product by 1
+    /// hides a wrong operand order) and bonds breaking.
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn hand_written_kernel_matches_the_portable_loop_for_every_law() {
-        if !crate::simd::avx512_kernels_available() {
+        if hand_kernel().is_none() {
             return;
         }
         let dx = 0.7;
@@ -1004,16 +1180,17 @@ mod tests {
                     vec![NodeTerms::default(); reference.len()],
                 );
                 let unit = |_j: usize| 1.0;
+                let wide = hand_kernel() == Some(HandKernelSet::Avx512);
                 macro_rules! portable {
-                    ($linear:literal, $beta:literal) => {
-                        rows_portable::<D, WIDE_LANES, u8>(
-                            &rows,
-                            &mut portable.1,
-                            &mut portable.0,
-                            &|l| weight.at::<$linear, $beta>(l) * v,
-                            &unit,
-                        )
-                    };
+                    ($linear:literal, $beta:literal) => {{
+                        let weight = |l| weight.at::<$linear, $beta>(l) * v;
+                        let (state, terms) = (&mut portable.0, &mut portable.1);
+                        if wide {
+                            rows_portable::<D, WIDE_LANES, u8>(&rows, terms, state, &weight, &unit)
+                        } else {
+                            rows_portable::<D, LANES, u8>(&rows, terms, state, &weight, &unit)
+                        }
+                    }};
                 }
                 let portable_broken = match (influence, volume_correction) {
                     (Influence::Constant, true) => portable!(false, true),

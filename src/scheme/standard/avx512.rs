@@ -12,52 +12,29 @@
 
 use std::arch::x86_64::*;
 
-use super::{BondWeight, NodeTerms, Rows, WIDE_LANES, break_lanes, pmb_tail, split_rows};
+use super::{BondWeight, HandKernel, NodeTerms, Rows, WIDE_LANES, break_lanes, pmb_tail};
 use crate::scheme::RowMask;
-use crate::simd::{avx512_kernels_available, gather8, lanes_sum};
+use crate::simd::{gather8, lanes_sum};
 
-/// The force loop over all rows (`Standard::forces_masked` on a 2D or 3D scene with uniform
-/// volumes): ω c β V s e per bond with the influence and partial-volume factor of
-/// `weight`, V = `volume`. Returns the directed bonds broken.
-///
-/// The caller checks `simd::avx512_kernels_available()` and that `D` is 2 or 3.
-pub(super) fn forces<const D: usize, M: RowMask>(
-    rows: &Rows<D, M>,
-    intact: &mut [u8],
-    terms: &mut [NodeTerms<D>],
-    weight: BondWeight,
-    volume: f64,
-    (linear, beta, energy): (bool, bool, bool),
-) -> u64 {
-    assert!((D == 2 || D == 3) && avx512_kernels_available());
-    macro_rules! run {
-        ($linear:literal, $beta:literal, $energy:literal) => {
-            split_rows(
-                rows.families,
-                0,
-                terms,
-                intact,
-                &|first: usize, terms: &mut [NodeTerms<D>], state: &mut [u8]| -> u64 {
-                    let block = Rows { first, ..*rows };
-                    // SAFETY: the features were detected (asserted above); D is 2 or 3.
-                    unsafe {
-                        rows_simd::<D, $linear, $beta, $energy, M>(
-                            &block, terms, state, &weight, volume,
-                        )
-                    }
-                },
-            )
-        };
-    }
-    match (linear, beta, energy) {
-        (false, true, true) => run!(false, true, true),
-        (false, false, true) => run!(false, false, true),
-        (true, true, true) => run!(true, true, true),
-        (true, false, true) => run!(true, false, true),
-        (false, true, false) => run!(false, true, false),
-        (false, false, false) => run!(false, false, false),
-        (true, true, false) => run!(true, true, false),
-        (true, false, false) => run!(true, false, false),
+/// The AVX-512 kernel.
+pub(super) struct Avx512;
+
+impl HandKernel for Avx512 {
+    unsafe fn rows<
+        const D: usize,
+        const LINEAR: bool,
+        const BETA: bool,
+        const ENERGY: bool,
+        M: RowMask,
+    >(
+        rows: &Rows<D, M>,
+        terms: &mut [NodeTerms<D>],
+        state: &mut [u8],
+        weight: &BondWeight,
+        volume: f64,
+    ) -> u64 {
+        // SAFETY: the caller guarantees AVX-512 F/VL/DQ/BW and D ∈ {2, 3}.
+        unsafe { rows_simd::<D, LINEAR, BETA, ENERGY, M>(rows, terms, state, weight, volume) }
     }
 }
 
