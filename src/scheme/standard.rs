@@ -324,9 +324,9 @@ impl<const D: usize> Standard<'_, D> {
                     },
                 };
                 #[cfg(target_arch = "x86_64")]
-                if avx2 {
-                    // SAFETY: AVX2 was detected above.
-                    *o = unsafe { linearized_row_avx2(&row, reference, u) };
+                if avx2 && (D == 2 || D == 3) {
+                    // SAFETY: AVX2 was detected above; D is 2 or 3.
+                    *o = unsafe { avx2::linearized_row(&row, reference, u) };
                     return;
                 }
                 *o = linearized_row::<D, LANES>(&row, reference, u);
@@ -344,7 +344,8 @@ struct LinearizedRow<'a> {
 
 /// Σ_j c_ij ((ξ · (u_i − u_j)) ξ over the row's intact bonds, `N` bonds together (a broken
 /// bond's coefficient counts as 0), the remainder one by one. The lane loops compile to
-/// SIMD arithmetic; the gathers stay scalar.
+/// SIMD arithmetic; the gathers stay scalar (`avx2::linearized_row` gives these bits at
+/// 4 lanes with vector gathers).
 #[inline(always)]
 fn linearized_row<const D: usize, const N: usize>(
     row: &LinearizedRow,
@@ -386,10 +387,25 @@ fn linearized_row<const D: usize, const N: usize>(
     for k in 0..D {
         acc[k] = acc_lanes[k].iter().sum();
     }
-    let tail = row.neighbors[blocked..]
+    linearized_tail(row, blocked, reference, u, &mut acc);
+    acc
+}
+
+/// The row's bonds from its `first`-th on, one by one, added to `acc` (`linearized_row`'s
+/// remainder after its blocks of lanes).
+#[inline(always)]
+fn linearized_tail<const D: usize>(
+    row: &LinearizedRow,
+    first: usize,
+    reference: &[[f64; D]],
+    u: &[[f64; D]],
+    acc: &mut [f64; D],
+) {
+    let (x_i, u_i) = (reference[row.i], u[row.i]);
+    let tail = row.neighbors[first..]
         .iter()
-        .zip(&row.states[blocked..])
-        .zip(&row.coefficients[blocked..]);
+        .zip(&row.states[first..])
+        .zip(&row.coefficients[first..]);
     for ((&j, &state), &coefficient) in tail {
         if state == 0 {
             continue;
@@ -405,18 +421,6 @@ fn linearized_row<const D: usize, const N: usize>(
             acc[k] += scale * xi[k];
         }
     }
-    acc
-}
-
-/// `linearized_row` at 4 lanes compiled for AVX2 (no FMA: the portable loop's bits).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx,avx2")]
-fn linearized_row_avx2<const D: usize>(
-    row: &LinearizedRow,
-    reference: &[[f64; D]],
-    u: &[[f64; D]],
-) -> [f64; D] {
-    linearized_row::<D, LANES>(row, reference, u)
 }
 
 /// The linearized operator's coefficients ([`Standard::linearized`]).
@@ -1216,6 +1220,56 @@ mod tests {
             }
         }
         assert_eq!(compared, 4);
+    }
+
+    /// The AVX2 linearized row (vector gathers) gives the portable 4-lane loop's bits, in 2D
+    /// and 3D, with broken bonds and a displacement field without symmetry.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn vector_linearized_rows_match_the_portable_loop() {
+        if !crate::simd::avx2() {
+            return;
+        }
+        fn compare<const D: usize>(reference: &[[f64; D]], radius: f64) {
+            let families = Families::build(reference, radius);
+            let coefficients: Vec<f64> = (0..families.bond_count())
+                .map(|b| 1.0 + (b % 7) as f64 * 0.37)
+                .collect();
+            let states: Vec<u8> = (0..families.bond_count())
+                .map(|b| u8::from(b % 5 != 3))
+                .collect();
+            let u: Vec<[f64; D]> = (0..reference.len())
+                .map(|i| std::array::from_fn(|k| ((i * (k + 3)) as f64 * 0.618).sin()))
+                .collect();
+            for i in 0..reference.len() {
+                let range = families.range(i);
+                let row = LinearizedRow {
+                    i,
+                    neighbors: &families.neighbors[range.clone()],
+                    states: &states[range.clone()],
+                    coefficients: &coefficients[range],
+                };
+                let portable = linearized_row::<D, LANES>(&row, reference, &u);
+                // SAFETY: AVX2 was detected above; D is 2 or 3.
+                let vector = unsafe { avx2::linearized_row(&row, reference, &u) };
+                assert_eq!(
+                    portable.map(f64::to_bits),
+                    vector.map(f64::to_bits),
+                    "row {i}"
+                );
+                assert!(portable.iter().any(|&x| x != 0.0));
+            }
+        }
+        let (lattice, _) = perturbed_cube(7.0, 5);
+        compare(&lattice.positions, 3.0);
+        let square = Solid::Box {
+            min: vec![0.0; 2],
+            max: vec![12.0; 2],
+        };
+        compare(
+            &Lattice::<2>::build(&square, 1.0, [-0.2, 0.2], 9).positions,
+            3.0,
+        );
     }
 
     /// With one volume for every node the coefficients are kept per distinct row

@@ -11,7 +11,10 @@
 
 use std::arch::x86_64::*;
 
-use super::{BondWeight, HandKernel, LANES, NodeTerms, Rows, break_lanes, pmb_tail};
+use super::{
+    BondWeight, HandKernel, LANES, LinearizedRow, NodeTerms, Rows, break_lanes, linearized_tail,
+    pmb_tail,
+};
 use crate::scheme::RowMask;
 use crate::simd::{gather4, lanes4};
 
@@ -166,4 +169,61 @@ fn lane_weight<const LINEAR: bool, const BETA: bool>(weight: &BondWeight, l: __m
     } else {
         w
     }
+}
+
+/// `linearized_row::<D, 4>` (one row of `Standard::apply_linearized`) with each block's
+/// reference and current positions read by `gather4`: the portable loop's operations in its
+/// order, so its bits.
+///
+/// # Safety
+/// AVX2 is available and `D` is 2 or 3.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn linearized_row<const D: usize>(
+    row: &LinearizedRow,
+    reference: &[[f64; D]],
+    u: &[[f64; D]],
+) -> [f64; D] {
+    let (x_i, u_i) = (reference[row.i], u[row.i]);
+    let (flat_reference, flat_u) = (reference.as_flattened(), u.as_flattened());
+    // Every neighbour index is a node (checked once per row, not per lane and array).
+    let last = row.neighbors.iter().copied().max().unwrap_or(0) as usize;
+    assert!(reference.len() == u.len() && (row.neighbors.is_empty() || last < u.len()));
+    assert_eq!(row.coefficients.len(), row.neighbors.len());
+    let x: [__m256d; D] = std::array::from_fn(|k| _mm256_set1_pd(x_i[k]));
+    let v: [__m256d; D] = std::array::from_fn(|k| _mm256_set1_pd(u_i[k]));
+    let zero = _mm256_setzero_si256();
+    let blocked = row.neighbors.len() / LANES * LANES;
+    let mut acc_lanes = [_mm256_setzero_pd(); D];
+    for block in (0..blocked).step_by(LANES) {
+        let nodes = &row.neighbors[block..];
+        // SAFETY: the feature is enabled here and every index was checked above.
+        let (p, q) = unsafe {
+            (
+                gather4::<D>(flat_reference, nodes),
+                gather4::<D>(flat_u, nodes),
+            )
+        };
+        let xi: [__m256d; D] = std::array::from_fn(|k| _mm256_sub_pd(p[k], x[k]));
+        let du: [__m256d; D] = std::array::from_fn(|k| _mm256_sub_pd(v[k], q[k]));
+        let mut proj = _mm256_mul_pd(xi[0], du[0]);
+        for k in 1..D {
+            proj = _mm256_add_pd(proj, _mm256_mul_pd(xi[k], du[k]));
+        }
+        let bytes = u32::from_le_bytes(
+            row.states[block..block + LANES]
+                .try_into()
+                .expect("a block of 4 bond states"),
+        );
+        let states = _mm256_cvtepu8_epi64(_mm_cvtsi32_si128(bytes as i32));
+        let dead = _mm256_castsi256_pd(_mm256_cmpeq_epi64(states, zero));
+        // SAFETY: `block + 4 <= blocked <= coefficients.len()`.
+        let c = unsafe { _mm256_loadu_pd(row.coefficients.as_ptr().add(block)) };
+        let scale = _mm256_andnot_pd(dead, _mm256_mul_pd(c, proj));
+        for (acc, xi_k) in acc_lanes.iter_mut().zip(&xi) {
+            *acc = _mm256_add_pd(*acc, _mm256_mul_pd(scale, *xi_k));
+        }
+    }
+    let mut acc: [f64; D] = std::array::from_fn(|k| lanes4(acc_lanes[k]).iter().sum());
+    linearized_tail(row, blocked, reference, u, &mut acc);
+    acc
 }
