@@ -5,6 +5,8 @@
 use crate::discretization::Families;
 
 #[cfg(target_arch = "x86_64")]
+mod avx2;
+#[cfg(target_arch = "x86_64")]
 mod avx512;
 
 /// What a scan minimizes over a node's bonds, from r² and l² (a bond's squared current and
@@ -39,6 +41,9 @@ pub struct BondView<'a, const D: usize> {
     /// The hand-written 2D kernel (`avx512::least_d2`) can run.
     #[cfg(target_arch = "x86_64")]
     kernel_2d: bool,
+    /// Without it, the hand-written AVX2 kernel (`avx2::least`, 2D and 3D) can run.
+    #[cfg(target_arch = "x86_64")]
+    kernel_avx2: bool,
 }
 
 impl<'a, const D: usize> BondView<'a, D> {
@@ -57,12 +62,14 @@ impl<'a, const D: usize> BondView<'a, D> {
             avx512: crate::simd::avx512_f_vl(),
             #[cfg(target_arch = "x86_64")]
             kernel_2d: D == 2 && crate::simd::avx512_f_vl(),
+            #[cfg(target_arch = "x86_64")]
+            kernel_avx2: (D == 2 || D == 3) && crate::simd::avx2(),
         }
     }
 
     /// The least `measure` over bonds (i, j), j in `neighbors`: the hand-written AVX-512
-    /// kernel on 2D scenes where it can run, the compiled lane builds otherwise (the same
-    /// value in every build: a minimum).
+    /// kernel on 2D scenes where it can run, else the hand-written AVX2 one (2D and 3D), the
+    /// compiled lane builds otherwise (the same value in every build: a minimum).
     #[inline(always)]
     pub fn least(&self, i: usize, neighbors: &[u32], measure: Measure) -> f64 {
         #[cfg(target_arch = "x86_64")]
@@ -77,6 +84,21 @@ impl<'a, const D: usize> BondView<'a, D> {
                     }
                     Measure::NegatedSquaredRatio => {
                         avx512::least_d2::<true>(i, neighbors, reference, positions, 0.0)
+                    }
+                }
+            };
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.kernel_avx2 {
+            let (reference, positions) = (self.reference, self.positions);
+            // SAFETY: AVX2 was detected in `new` and D is 2 or 3.
+            return unsafe {
+                match measure {
+                    Measure::Margin(factor) => {
+                        avx2::least::<D, false>(i, neighbors, reference, positions, factor)
+                    }
+                    Measure::NegatedSquaredRatio => {
+                        avx2::least::<D, true>(i, neighbors, reference, positions, 0.0)
                     }
                 }
             };
@@ -200,7 +222,7 @@ mod tests {
     use crate::discretization::grid::Lattice;
     use crate::scene::Solid;
 
-    /// Every build (portable 4 lanes, AVX2, AVX-512 8 lanes, the hand-written 2D kernel)
+    /// Every build (portable 4 lanes, AVX2, AVX-512 8 lanes, the hand-written kernels)
     /// returns the plain minimum over the row, for both measures, in 2D and 3D, on rows whose
     /// lengths are not multiples of the lane count.
     #[test]
