@@ -580,12 +580,20 @@ impl<const D: usize, M: RowMask> Rows<'_, D, M> {
     ) -> impl Iterator<Item = (usize, &'t mut NodeTerms<D>, &'t mut [u8])> {
         let families = self.families;
         let (first, skip) = (self.first, self.skip);
+        // `state` starts at the block's first bond; `consumed` is the bond `rest` starts at.
         let mut rest = state;
+        let mut consumed = families.offsets[first];
         terms.iter_mut().enumerate().filter_map(move |(row, t_i)| {
             let i = first + row;
-            let (row_state, tail) = std::mem::take(&mut rest).split_at_mut(families.range(i).len());
-            rest = tail;
-            (!skip.is_some_and(|mask| mask[i].skipped())).then_some((i, t_i, row_state))
+            // A skipped row (most rows of a hybrid's Ω_w) costs one mask read.
+            if skip.is_some_and(|mask| mask[i].skipped()) {
+                return None;
+            }
+            let (start, end) = (families.offsets[i], families.offsets[i + 1]);
+            let (_, tail) = std::mem::take(&mut rest).split_at_mut(start - consumed);
+            let (row_state, tail) = tail.split_at_mut(end - start);
+            (rest, consumed) = (tail, end);
+            Some((i, t_i, row_state))
         })
     }
 }

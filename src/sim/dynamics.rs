@@ -678,6 +678,35 @@ impl<const D: usize> DynamicSimulation<D> {
         scheme.energy_density(i, self.positions(), &self.intact)
     }
 
+    /// The bond loop's terms, energy densities included, of the rows whose W_i the last force
+    /// pass did not leave (Ω_w nodes, or every node when that pass skipped the energy sum),
+    /// from the force loop run again on those rows alone over a copy of the bond states: the
+    /// vector kernels instead of a scalar loop per node, and nothing of the solver's state
+    /// changes (an Ω_w bond is below χ s0 < s0, and the last pass broke every other bond at
+    /// s0 at these positions, so the copy breaks none and each W_i is the per-node sum's to
+    /// rounding). `None` on a multi-grid scene (its levels' families differ: per node there)
+    /// and where every W_i is current.
+    fn stale_energy_terms(&self) -> Option<Vec<NodeTerms<D>>> {
+        if self.multigrid.is_some() || (self.hybrid.is_none() && self.energy_current) {
+            return None;
+        }
+        let n = self.positions().len();
+        let current: Vec<u8> = (0..n)
+            .into_par_iter()
+            .map(|i| u8::from(self.energy_current && !self.runs_wls(i)))
+            .collect();
+        let mut intact = self.intact.clone();
+        let mut terms = vec![NodeTerms::default(); n];
+        self.scheme().forces_masked(
+            self.positions(),
+            &mut intact,
+            &mut terms,
+            Some(&current),
+            true,
+        );
+        Some(terms)
+    }
+
     /// Over the nodes that carry mass (the active ones of a multi-grid scene).
     pub fn kinetic_energy_and_momentum(&self) -> (f64, [f64; D]) {
         metrics::kinetic_energy_and_momentum(self.velocities(), &self.mass_volumes(), self.density)
@@ -1026,16 +1055,17 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         // force has no local energy density (−½ u_i·f_i sums to the energy only over a whole
         // WLS body): its PMB bond energy over its family is evaluated here, at frame time.
         let terms = self.terms();
+        let recomputed = self.stale_energy_terms();
         let strain_energy: Vec<f64> = (0..mass_volumes.len())
             .into_par_iter()
             .map(|i| {
                 if mass_volumes[i] == 0.0 {
                     return 0.0;
                 }
-                let w = if self.runs_wls(i) || !self.energy_current {
-                    self.energy_density(i)
-                } else {
-                    terms[i].energy_density
+                let w = match &recomputed {
+                    _ if !self.runs_wls(i) && self.energy_current => terms[i].energy_density,
+                    Some(fresh) => fresh[i].energy_density,
+                    None => self.energy_density(i),
                 };
                 w * mass_volumes[i]
             })
