@@ -21,8 +21,6 @@ pub struct LatticePaths<const D: usize> {
     pub complete: Vec<bool>,
 }
 
-/// Positions off the lattice by more than this share of the spacing: not a lattice.
-const OFF_LATTICE: f64 = 1e-6;
 /// A lattice box larger than this many times the node count is too sparse to index densely.
 const SPARSE: usize = 8;
 
@@ -36,24 +34,7 @@ impl<const D: usize> LatticePaths<D> {
         cells: usize,
         cell_nodes: impl Fn(usize) -> &'a [u32],
     ) -> Option<Self> {
-        let origin = *reference.first()?;
-        if !(spacing > 0.0 && spacing.is_finite()) {
-            return None;
-        }
-        let mut points = Vec::with_capacity(reference.len());
-        for x in reference {
-            let mut p = [0i64; D];
-            for a in 0..D {
-                let q = (x[a] - origin[a]) / spacing;
-                let r = q.round();
-                // A NaN coordinate fails too.
-                if (q - r).abs().partial_cmp(&OFF_LATTICE) != Some(std::cmp::Ordering::Less) {
-                    return None;
-                }
-                p[a] = r as i64;
-            }
-            points.push(p);
-        }
+        let points = crate::discretization::grid::lattice_points(reference, spacing)?;
         let lo: [i64; D] = std::array::from_fn(|a| points.iter().map(|p| p[a]).min().unwrap_or(0));
         let hi: [i64; D] = std::array::from_fn(|a| points.iter().map(|p| p[a]).max().unwrap_or(0));
         let dims: [usize; D] = std::array::from_fn(|a| (hi[a] - lo[a] + 1) as usize);
