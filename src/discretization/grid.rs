@@ -117,6 +117,37 @@ impl SplitMix64 {
     }
 }
 
+/// Positions off a lattice by more than this share of the spacing are not on it.
+const OFF_LATTICE: f64 = 1e-6;
+
+/// The integer coordinates of every point of `reference` on the lattice of spacing `spacing`
+/// through the first point, if each lies on it to 10⁻⁶ of the spacing (`None` otherwise, and
+/// for a NaN coordinate or a spacing that is not positive and finite).
+pub fn lattice_points<const D: usize>(
+    reference: &[[f64; D]],
+    spacing: f64,
+) -> Option<Vec<[i64; D]>> {
+    let origin = *reference.first()?;
+    if !(spacing > 0.0 && spacing.is_finite()) {
+        return None;
+    }
+    let mut points = Vec::with_capacity(reference.len());
+    for x in reference {
+        let mut p = [0i64; D];
+        for a in 0..D {
+            let q = (x[a] - origin[a]) / spacing;
+            let r = q.round();
+            // A NaN coordinate fails too.
+            if (q - r).abs().partial_cmp(&OFF_LATTICE) != Some(std::cmp::Ordering::Less) {
+                return None;
+            }
+            p[a] = r as i64;
+        }
+        points.push(p);
+    }
+    Some(points)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -147,35 +178,4 @@ mod tests {
             }
         }
     }
-}
-
-/// Positions off a lattice by more than this share of the spacing are not on it.
-const OFF_LATTICE: f64 = 1e-6;
-
-/// The integer coordinates of every point of `reference` on the lattice of spacing `spacing`
-/// through the first point, if each lies on it to 10⁻⁶ of the spacing (`None` otherwise, and
-/// for a NaN coordinate or a spacing that is not positive and finite).
-pub fn lattice_points<const D: usize>(
-    reference: &[[f64; D]],
-    spacing: f64,
-) -> Option<Vec<[i64; D]>> {
-    let origin = *reference.first()?;
-    if !(spacing > 0.0 && spacing.is_finite()) {
-        return None;
-    }
-    let mut points = Vec::with_capacity(reference.len());
-    for x in reference {
-        let mut p = [0i64; D];
-        for a in 0..D {
-            let q = (x[a] - origin[a]) / spacing;
-            let r = q.round();
-            // A NaN coordinate fails too.
-            if (q - r).abs().partial_cmp(&OFF_LATTICE) != Some(std::cmp::Ordering::Less) {
-                return None;
-            }
-            p[a] = r as i64;
-        }
-        points.push(p);
-    }
-    Some(points)
 }
