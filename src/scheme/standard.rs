@@ -260,7 +260,7 @@ impl<const D: usize> Standard<'_, D> {
     pub fn lattice_symbol(&self, density: f64) -> Option<LatticeSymbol<D>> {
         let v = self.uniform_volume?;
         let spacing = self.quadrature.spacing;
-        if D > 3 || !on_lattice(self.reference, spacing) {
+        if !on_lattice(self.reference, spacing) {
             return None;
         }
         // Every bond's offset is a lattice vector no longer than this; a rounding allowance
