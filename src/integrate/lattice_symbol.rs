@@ -45,9 +45,8 @@ impl<const D: usize> LatticeSymbol<D> {
     /// `coefficient(‖h q‖)` (offsets with a zero coefficient dropped; the coefficient must be
     /// ≥ 0 and finite, and D 1, 2 or 3, else `None`).
     pub fn new(spacing: f64, reach: f64, coefficient: impl Fn(f64) -> f64) -> Option<Self> {
-        if !(spacing > 0.0 && spacing.is_finite() && reach.is_finite() && reach >= 0.0)
-            || !(1..=3).contains(&D)
-        {
+        let usable = spacing > 0.0 && spacing.is_finite() && reach.is_finite() && reach >= 0.0;
+        if !(usable && (1..=3).contains(&D)) {
             return None;
         }
         let most = (reach / spacing).floor() as i64;
