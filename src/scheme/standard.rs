@@ -7,7 +7,6 @@
 use rayon::prelude::*;
 
 use crate::discretization::{Families, NodeValue, Quadrature, RowValues};
-use crate::integrate::lattice_symbol::{LatticeSymbol, on_lattice};
 use crate::model::diffusion::DiffusionKernel;
 use crate::model::pmb::Influence;
 use crate::model::pmb::{PmbLaw, influence};
@@ -254,25 +253,9 @@ impl<const D: usize> Standard<'_, D> {
         }
     }
 
-    /// The symbol of [`Self::linearized`] on the infinite lattice, where it bounds this
-    /// operator's λ_max (`integrate::lattice_symbol`): every node of one volume, on the lattice
-    /// of the quadrature's spacing, D ≤ 3. Its offsets reach the longest bond.
-    pub fn lattice_symbol(&self, density: f64) -> Option<LatticeSymbol<D>> {
-        let v = self.uniform_volume?;
-        let spacing = self.quadrature.spacing;
-        if !on_lattice(self.reference, spacing) {
-            return None;
-        }
-        // Every bond's offset is a lattice vector no longer than this; a rounding allowance
-        // only adds (positive semi-definite) terms.
-        let reach = self.families.longest() * (1.0 + 1e-9);
-        LatticeSymbol::new(spacing, reach, |l| {
-            self.linearized_coefficient(density, l, v)
-        })
-    }
-
-    /// One bond's c ω β V_j / (ρ ‖ξ‖³), ‖ξ‖ = `l`, V_j = `volume`.
-    fn linearized_coefficient(&self, density: f64, l: f64, volume: f64) -> f64 {
+    /// One bond's c ω β V_j / (ρ ‖ξ‖³), ‖ξ‖ = `l`, V_j = `volume` (the coefficient of
+    /// [`Self::linearized`]; a function of the length alone).
+    pub fn linearized_coefficient(&self, density: f64, l: f64, volume: f64) -> f64 {
         let law = self.law;
         law.micromodulus / density
             * influence(law.influence, l, law.horizon)
@@ -969,6 +952,7 @@ where
 mod tests {
     use super::*;
     use crate::discretization::grid::Lattice;
+    use crate::integrate::lattice_symbol::{LatticeSymbol, on_lattice};
     use crate::scene::Solid;
 
     /// A unit-spaced cube lattice of side `side`, perturbed by up to 0.2 spacings (seeded),
@@ -1300,7 +1284,7 @@ mod tests {
 
     /// On a lattice with a cut, the symbol's bound (from above) and Lanczos on the operator
     /// itself (from below) bracket λ_max, 3 % apart at most (Lanczos's former margin was 2 %);
-    /// a perturbed cloud has no symbol.
+    /// a perturbed cloud is not a lattice.
     #[test]
     fn the_lattice_symbol_bounds_the_operator_from_above() {
         let (spacing, side) = (0.7, 30usize);
@@ -1343,11 +1327,14 @@ mod tests {
             }
         }
         let density = 7.8;
-        let bound = scheme
-            .lattice_symbol(density)
-            .expect("a lattice")
-            .max_eigenvalue_bound(1e-3, 1_000_000)
-            .expect("settles");
+        assert!(on_lattice(&positions, spacing));
+        let reach = families.longest() * (1.0 + 1e-9);
+        let bound = LatticeSymbol::<2>::new(spacing, reach, |l| {
+            scheme.linearized_coefficient(density, l, volume)
+        })
+        .expect("a lattice")
+        .max_eigenvalue_bound(1e-3, 1_000_000)
+        .expect("settles");
         let coefficients = scheme.linearized(density);
         let masses = vec![volume * density; positions.len()];
         let lanczos = crate::integrate::stability::max_eigenvalue::<2>(
@@ -1362,11 +1349,7 @@ mod tests {
         );
         let mut moved = positions.clone();
         moved[17][1] += 0.01 * spacing;
-        let perturbed = Standard {
-            reference: &moved,
-            ..scheme
-        };
-        assert!(perturbed.lattice_symbol(density).is_none());
+        assert!(!on_lattice(&moved, spacing));
     }
 
     /// With one volume for every node the coefficients are kept per distinct row

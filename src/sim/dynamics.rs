@@ -12,6 +12,7 @@ use crate::adapt::masks::{GridClass, SchemeClass};
 use crate::adapt::multiadaptive::MultiAdaptive;
 use crate::discretization::{Discretization, Families, Field, Nodes, Quadrature};
 use crate::frame::{ClassField, Frame, NodeField};
+use crate::integrate::lattice_symbol::{LatticeSymbol, on_lattice};
 use crate::integrate::stability::POWER_ITERATIONS;
 use crate::integrate::{self, stability, verlet};
 use crate::metrics;
@@ -208,6 +209,26 @@ const SYMBOL_TOLERANCE: f64 = 1e-3;
 /// family of 122 offsets needs about 90 000).
 const SYMBOL_EVALUATIONS: usize = 2_000_000;
 
+/// The symbol of the scheme's linearized operator on the infinite lattice, where it bounds the
+/// operator's λ_max (`integrate::lattice_symbol`): every node of one volume, on the lattice of
+/// the quadrature's spacing. Its offsets reach the longest bond.
+fn lattice_symbol<const D: usize>(
+    scheme: &Standard<'_, D>,
+    density: f64,
+) -> Option<LatticeSymbol<D>> {
+    let volume = scheme.uniform_volume?;
+    let spacing = scheme.quadrature.spacing;
+    if !on_lattice(scheme.reference, spacing) {
+        return None;
+    }
+    // Every bond's offset is a lattice vector no longer than this; a rounding allowance only
+    // adds (positive semi-definite) terms.
+    let reach = scheme.families.longest() * (1.0 + 1e-9);
+    LatticeSymbol::new(spacing, reach, |l| {
+        scheme.linearized_coefficient(density, l, volume)
+    })
+}
+
 /// The stable step of velocity-Verlet on the linearized operator (with the hybrid's WLS rows
 /// where there is one): the sharp limit (the lattice symbol's bound on a lattice, else Lanczos's
 /// estimate with a margin), never below the guaranteed (3.8).
@@ -225,8 +246,7 @@ fn stable_step<const D: usize>(
     // margin, and milliseconds instead of 26–55 applications of the operator). Elsewhere
     // Lanczos approaches λ_max from below: keep a margin. Never below the guaranteed (3.8)
     // bound.
-    let lambda_bound = scheme
-        .lattice_symbol(density)
+    let lambda_bound = lattice_symbol(scheme, density)
         .and_then(|symbol| symbol.max_eigenvalue_bound(SYMBOL_TOLERANCE, SYMBOL_EVALUATIONS))
         .unwrap_or_else(|| {
             let lambda = stability::max_eigenvalue::<D>(n, &masses, POWER_ITERATIONS, |u, out| {
