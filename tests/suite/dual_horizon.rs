@@ -481,6 +481,60 @@ fn tada_formula_reproduces_the_printed_values() {
     }
 }
 
+/// The elastic mouth opening (m) of the 50 × 200 mm strip at σ = 10 MPa, E = 200 GPa, plane
+/// stress, by `scripts/sent_cmod_fem.py` (8-node quadrilaterals graded to the tip, four
+/// nested meshes, Richardson-extrapolated; converged to < 10⁻⁴, and to 10⁻⁶ of the H = 400 mm
+/// strip's): (a/L, opening). Tada's formula lies 0.35–1.57 % below these.
+const ELASTIC_OPENING: [(f64, f64); 5] = [
+    (0.1, 1.54900e-6),
+    (0.2, 3.65426e-6),
+    (0.3, 7.03595e-6),
+    (0.4, 13.04774e-6),
+    (0.5, 24.70218e-6),
+];
+
+#[test]
+fn tada_formula_is_below_the_finite_element_opening() {
+    // Tada quotes his fit as accurate to 1 %; the independent FEM says 1.6 % at a/L = 0.3.
+    for (ratio, fem) in ELASTIC_OPENING {
+        let d = tada(10e6, ratio * 50e-3, 50e-3, 200e9);
+        let gap = d / fem - 1.0;
+        assert!((-0.016..-0.003).contains(&gap), "a/L = {ratio}: {gap:+e}");
+    }
+}
+
+/// zeng2024 Sect. 4.1 against an independent reference: the coarse plate (Δ = 1 mm, δ =
+/// 3.015 mm, no refinement) relaxed by ADR opens within 1.5 % (the issue's bound for the
+/// paper's fine run, here against an exact elastic answer instead of Tada's fit) of the
+/// finite-element opening at a/L = 0.1, 0.3 and 0.5 (measured +0.35 %, +0.86 %, +1.03 %;
+/// with the tip's tie bonds cut, `ends = "closed"`, a/L = 0.5 opens +4.8 % and fails it).
+#[test]
+fn crack_opening_matches_the_elastic_opening_of_the_strip() {
+    for (ratio, fem) in [ELASTIC_OPENING[0], ELASTIC_OPENING[2], ELASTIC_OPENING[4]] {
+        let tip = format!("{} mm", ratio * 50.0);
+        let crack = format!(
+            r#"precracks=[{{segment={{from=["-1 mm","100 mm"],to=["{tip}","100 mm"],ends="open"}}}}]"#
+        );
+        let scene = Scene::load_with("crack-opening", Some("coarse"), &[crack]).unwrap();
+        let mut sim = DualHorizonSimulation::new(&scene).unwrap();
+        let total = sim.info().total_steps;
+        while sim.steps_done() < total && !sim.converged() {
+            sim.step().unwrap();
+        }
+        assert!(sim.converged(), "a/L = {ratio}: not converged");
+        let opening = sim.frame().scalar("opening/mouth").unwrap();
+        let error = opening / fem - 1.0;
+        println!(
+            "a/L = {ratio}: {:.4} µm against {:.4} µm (FEM): {:+.2} %, {} iterations",
+            opening * 1e6,
+            fem * 1e6,
+            100.0 * error,
+            sim.steps_done()
+        );
+        assert!(error.abs() < 0.015, "a/L = {ratio}: error {error:+e}");
+    }
+}
+
 /// The branching plate's probe (`metrics::branching`): the pre-crack on y = 20 mm ends at
 /// x = 50 mm; cracked means φ > 0.45 (a pre-crack face keeps φ = 0.393); columns of one
 /// coarse cell; two bands more than one coarse horizon apart are two cracks.
