@@ -1,6 +1,7 @@
 //! Dual-horizon OSB with particle splitting and ADR (issue 17; zeng2024): patch tests of the
 //! operator against the classical energy and stress, rigid motions across a size change,
-//! conservation through splits, and the crack opening against Tada's formula.
+//! conservation through splits, the crack opening against Tada's formula and a finite-element
+//! reference, branching onset and the Kalthoff–Winkler DH crack angles.
 
 use peridyn::adapt::splitting::{self, SplitColumns};
 use peridyn::discretization::Nodes;
