@@ -87,6 +87,17 @@ impl<const D: usize> LatticeSymbol<D> {
         })
     }
 
+    /// The symbol of a family whose longest bond is `longest_bond`: every bond's offset is a
+    /// lattice vector no longer than that, and the reach's rounding allowance only adds
+    /// (positive semi-definite) terms.
+    pub fn of_bonds(
+        spacing: f64,
+        longest_bond: f64,
+        coefficient: impl Fn(f64) -> f64,
+    ) -> Option<Self> {
+        Self::new(spacing, longest_bond * (1.0 + 1e-9), coefficient)
+    }
+
     /// λ_max(A(k)).
     pub fn value(&self, k: [f64; D]) -> f64 {
         largest_eigenvalue(&self.symbol(k).0)

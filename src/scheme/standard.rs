@@ -1328,8 +1328,7 @@ mod tests {
         }
         let density = 7.8;
         assert!(on_lattice(&positions, spacing));
-        let reach = families.longest() * (1.0 + 1e-9);
-        let bound = LatticeSymbol::<2>::new(spacing, reach, |l| {
+        let bound = LatticeSymbol::<2>::of_bonds(spacing, families.longest(), |l| {
             scheme.linearized_coefficient(density, l, volume)
         })
         .expect("a lattice")

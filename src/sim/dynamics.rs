@@ -221,10 +221,7 @@ fn lattice_symbol<const D: usize>(
     if !on_lattice(scheme.reference, spacing) {
         return None;
     }
-    // Every bond's offset is a lattice vector no longer than this; a rounding allowance only
-    // adds (positive semi-definite) terms.
-    let reach = scheme.families.longest() * (1.0 + 1e-9);
-    LatticeSymbol::new(spacing, reach, |l| {
+    LatticeSymbol::of_bonds(spacing, scheme.families.longest(), |l| {
         scheme.linearized_coefficient(density, l, volume)
     })
 }

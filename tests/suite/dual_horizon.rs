@@ -467,6 +467,14 @@ fn a_horizon_jump_leaves_a_force_under_strain_one_horizon_does_not() {
     assert!(jump >= 0.1 * edge, "jump {jump:e}, edge {edge:e}");
 }
 
+/// Steps `sim` to its last step, or until its relaxation converges.
+fn run_to_end(sim: &mut DualHorizonSimulation) {
+    let total = sim.info().total_steps;
+    while sim.steps_done() < total && !sim.converged() {
+        sim.step().unwrap();
+    }
+}
+
 /// Tada's crack-mouth opening d0 = 4σa/E f(a/L), zeng2024 (31)–(32).
 fn tada(stress: f64, crack: f64, width: f64, young: f64) -> f64 {
     let c = (std::f64::consts::PI * crack / (2.0 * width)).cos();
@@ -518,10 +526,7 @@ fn crack_opening_matches_the_elastic_opening_of_the_strip() {
         );
         let scene = Scene::load_with("crack-opening", Some("coarse"), &[crack]).unwrap();
         let mut sim = DualHorizonSimulation::new(&scene).unwrap();
-        let total = sim.info().total_steps;
-        while sim.steps_done() < total && !sim.converged() {
-            sim.step().unwrap();
-        }
+        run_to_end(&mut sim);
         assert!(sim.converged(), "a/L = {ratio}: not converged");
         let opening = sim.frame().scalar("opening/mouth").unwrap();
         let error = opening / fem - 1.0;
@@ -610,10 +615,7 @@ fn branching_case_1_branches_at_35_microseconds() {
 fn kalthoff_winkler_dh_angles(variant: &str) -> [f64; 2] {
     let scene = Scene::load("kalthoff-winkler-dh", Some(variant)).unwrap();
     let mut sim = DualHorizonSimulation::new(&scene).unwrap();
-    let total = sim.info().total_steps;
-    while sim.steps_done() < total {
-        sim.step().unwrap();
-    }
+    run_to_end(&mut sim);
     let angles = sim.crack_angles();
     let angle = |name: &str| {
         angles
@@ -887,10 +889,7 @@ fn crack_opening_relaxes_to_tadas_opening() {
     )
     .unwrap();
     let mut sim = DualHorizonSimulation::new(&scene).unwrap();
-    let total = sim.info().total_steps;
-    while sim.steps_done() < total && !sim.converged() {
-        sim.step().unwrap();
-    }
+    run_to_end(&mut sim);
     let residual = sim.residual().unwrap();
     assert!(
         sim.converged() && residual < 1e-6,
@@ -915,10 +914,7 @@ fn small_plate_opening(sets: &[&str]) -> f64 {
     let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
     let scene = Scene::load_with("crack-opening", Some("small"), &sets).unwrap();
     let mut sim = DualHorizonSimulation::new(&scene).unwrap();
-    let total = sim.info().total_steps;
-    while sim.steps_done() < total && !sim.converged() {
-        sim.step().unwrap();
-    }
+    run_to_end(&mut sim);
     assert!(sim.converged(), "{sets:?}: not converged");
     sim.frame().scalar("opening/mouth").unwrap()
 }
