@@ -1,9 +1,9 @@
 //! Bi-material corrosion (thesis §2.3.3 / §3.4.1; seed-thesis-ch2-3 §1.6): bond classes by phase,
 //! irreversible solid → liquid change below C_sat; `corrosion-1d`.
 
-use peridyn::scene::Scene;
-use peridyn::sim;
-use peridyn::solver::Stepper;
+use peridyn_core::scene::Scene;
+use peridyn_core::sim;
+use peridyn_core::solver::Stepper;
 
 /// Steps a scene to its end, returning (time, mass Σ C V, volume loss, solid nodes) each step.
 fn history(variant: Option<&str>) -> Vec<(f64, f64, f64, f64)> {

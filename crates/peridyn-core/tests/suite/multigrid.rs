@@ -4,8 +4,8 @@
 //! measured and bounded), the solid's dissolution time close to the fine model's; and patch
 //! tests across the interface.
 
-use peridyn::scene::Scene;
-use peridyn::sim::{self, ScalarSimulation};
+use peridyn_core::scene::Scene;
+use peridyn_core::sim::{self, ScalarSimulation};
 
 const PRESET: &str = "corrosion-1d";
 

@@ -3,9 +3,9 @@
 
 use crate::common;
 
-use peridyn::model::pmb::Plane;
-use peridyn::model::pmb::poisson_ratio;
-use peridyn::sim::DynamicSimulation;
+use peridyn_core::model::pmb::Plane;
+use peridyn_core::model::pmb::poisson_ratio;
+use peridyn_core::sim::DynamicSimulation;
 
 /// Index of the node nearest the centre of the block.
 fn centre<const D: usize>(sim: &DynamicSimulation<D>) -> usize {

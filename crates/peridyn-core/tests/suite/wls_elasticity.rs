@@ -4,12 +4,12 @@
 
 use nalgebra::DVector;
 
-use peridyn::discretization::Families;
-use peridyn::discretization::grid::{Lattice, SplitMix64};
-use peridyn::model::pmb::micromodulus;
-use peridyn::model::pmb::{Influence, Plane};
-use peridyn::scene::Solid;
-use peridyn::scheme::wls::{self, Basis};
+use peridyn_core::discretization::Families;
+use peridyn_core::discretization::grid::{Lattice, SplitMix64};
+use peridyn_core::model::pmb::micromodulus;
+use peridyn_core::model::pmb::{Influence, Plane};
+use peridyn_core::scene::Solid;
+use peridyn_core::scheme::wls::{self, Basis};
 
 /// A random quadratic vector field: coefficients [component][monomial of 1, x, y, z, x², …].
 struct Quadratic<const D: usize> {

@@ -4,9 +4,9 @@
 //! lose the uniform fine run's solid volume, within 3 % of the initial solid volume at every
 //! frame (the bound), over the 2 days the paper compares, while the front moves.
 
-use peridyn::scene::Scene;
-use peridyn::sim;
-use peridyn::solver::Stepper;
+use peridyn_core::scene::Scene;
+use peridyn_core::sim;
+use peridyn_core::solver::Stepper;
 
 const PRESET: &str = "screw-3d";
 

@@ -12,13 +12,13 @@
 //! The line: 1D, Δx = 50 µm, δ = 3Δx, β partial volumes, Table-3.7-like diffusivities; the
 //! first nodes solid (φ = 0 there, the Poisson equation's Dirichlet part).
 
-use peridyn::adapt::masks::Phase;
-use peridyn::discretization::{Families, Interpolation, Quadrature};
-use peridyn::integrate::newton::{SemiImplicit, StepReport};
-use peridyn::model::nernst_planck::NnppKernel;
-use peridyn::model::pmb::Influence;
-use peridyn::scheme::nnpp::{LinearSource, NnppBonds, NnppFields, NnppOperator, SpeciesLaw};
-use peridyn::sparse::LinearMethod;
+use peridyn_core::adapt::masks::Phase;
+use peridyn_core::discretization::{Families, Interpolation, Quadrature};
+use peridyn_core::integrate::newton::{SemiImplicit, StepReport};
+use peridyn_core::model::nernst_planck::NnppKernel;
+use peridyn_core::model::pmb::Influence;
+use peridyn_core::scheme::nnpp::{LinearSource, NnppBonds, NnppFields, NnppOperator, SpeciesLaw};
+use peridyn_core::sparse::LinearMethod;
 
 const NODES: usize = 101;
 const SPACING: f64 = 50e-6;

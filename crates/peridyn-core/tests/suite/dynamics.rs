@@ -5,11 +5,11 @@ use crate::common;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use peridyn::frame::Frame;
-use peridyn::runner::{self, FrameSink};
-use peridyn::scene::Scene;
-use peridyn::sim::{self, DynamicSimulation};
-use peridyn::solver::{SimError, Stepper};
+use peridyn_core::frame::Frame;
+use peridyn_core::runner::{self, FrameSink};
+use peridyn_core::scene::Scene;
+use peridyn_core::sim::{self, DynamicSimulation};
+use peridyn_core::solver::{SimError, Stepper};
 
 #[derive(Default)]
 struct Collect(Vec<Frame>, Vec<String>);

@@ -3,9 +3,9 @@
 //! are exact (see the preset's header). The run's implicit 3 h steps reach the discrete steady
 //! state, so the errors measure the β-partial-volume quadrature of the horizon sums.
 
-use peridyn::runner::{self, NullSink};
-use peridyn::scene::Scene;
-use peridyn::sim::NernstPlanckSimulation;
+use peridyn_core::runner::{self, NullSink};
+use peridyn_core::scene::Scene;
+use peridyn_core::sim::NernstPlanckSimulation;
 
 const PRESET: &str = "nnpp-1d-manufactured";
 const FIELDS: [&str; 3] = ["metal", "hydroxide", "potential"];

@@ -1,12 +1,12 @@
 //! The hybrid configuration (thesis §3.3, seed-thesis-ch2-3 §5): one grid, Ω_s standard (PMB with
 //! failure) and Ω_w WLS-2 (linearized), Ω_s grown where bonds reach χ·s0.
 
-use peridyn::adapt::hybrid::Hybrid;
-use peridyn::adapt::masks::SchemeClass;
-use peridyn::runner::{self, NullSink};
-use peridyn::scene::Scene;
-use peridyn::sim::DynamicSimulation;
-use peridyn::solver::Stepper;
+use peridyn_core::adapt::hybrid::Hybrid;
+use peridyn_core::adapt::masks::SchemeClass;
+use peridyn_core::runner::{self, NullSink};
+use peridyn_core::scene::Scene;
+use peridyn_core::sim::DynamicSimulation;
+use peridyn_core::solver::Stepper;
 
 fn load(preset: &str, variant: &str, set: &[&str]) -> Scene {
     let set: Vec<String> = set.iter().map(|s| s.to_string()).collect();
@@ -71,13 +71,13 @@ fn all_wls_hybrid_is_the_wls_scheme() {
     )
     .unwrap();
     // The reference: the same operator, integrated here.
-    let op = peridyn::scheme::wls::elasticity_operator(
+    let op = peridyn_core::scheme::wls::elasticity_operator(
         &(0..n as u32).collect::<Vec<_>>(),
         sim.reference(),
         sim.families(),
-        &peridyn::scheme::wls::Basis::new(2, 2),
-        &peridyn::scheme::wls::bond_l(
-            &peridyn::scheme::wls::Basis::new(2, 2),
+        &peridyn_core::scheme::wls::Basis::new(2, 2),
+        &peridyn_core::scheme::wls::bond_l(
+            &peridyn_core::scheme::wls::Basis::new(2, 2),
             sim.law.micromodulus,
             sim.law.horizon,
             sim.law.influence,

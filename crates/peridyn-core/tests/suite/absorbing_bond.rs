@@ -3,9 +3,9 @@
 //! same model on a disc so large that nothing comes back in time, node by node on the shared
 //! lattice, and against a fixed boundary, the free truncation and the first-order boundary.
 
-use peridyn::scene::Scene;
-use peridyn::sim::DynamicSimulation;
-use peridyn::solver::Stepper;
+use peridyn_core::scene::Scene;
+use peridyn_core::sim::DynamicSimulation;
+use peridyn_core::solver::Stepper;
 
 fn scene(variant: &str) -> Scene {
     Scene::load_with("abc-bond-2d", Some(variant), &[]).unwrap()
@@ -54,7 +54,7 @@ impl Run {
     }
 }
 
-fn probe(f: &peridyn::frame::Frame) -> [f64; 2] {
+fn probe(f: &peridyn_core::frame::Frame) -> [f64; 2] {
     [
         f.scalar("probe/p/displacement_x").unwrap(),
         f.scalar("probe/p/displacement_y").unwrap(),

@@ -7,8 +7,10 @@
 //! Nernst–Planck difference is 0.80. The integrals are taken here by Gauss–Legendre in r and a symmetric rule over the
 //! directions, independent of the meshfree discretization.
 
-use peridyn::model::nernst_planck::{NnppKernel, Species, poisson_bond_term, species_bond_rate};
-use peridyn::model::pmb::Influence;
+use peridyn_core::model::nernst_planck::{
+    NnppKernel, Species, poisson_bond_term, species_bond_rate,
+};
+use peridyn_core::model::pmb::Influence;
 
 /// Gauss–Legendre nodes and weights on (−1, 1) (Newton on P_n).
 fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {

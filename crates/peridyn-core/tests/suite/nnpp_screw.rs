@@ -2,9 +2,9 @@
 //! screw on one grid and on the multi-grid whose fictitious nodes are IDW constraint rows in
 //! the implicit systems.
 
-use peridyn::scene::Scene;
-use peridyn::sim::NernstPlanckSimulation;
-use peridyn::solver::Stepper;
+use peridyn_core::scene::Scene;
+use peridyn_core::sim::NernstPlanckSimulation;
+use peridyn_core::solver::Stepper;
 
 const PRESET: &str = "nnpp-screw";
 
@@ -155,7 +155,7 @@ fn the_multi_grid_screw_loses_the_uniform_fine_runs_volume() {
 /// node's η by 50 mV (C1 and φ of the first step do not depend on it).
 #[test]
 fn the_applied_potential_is_a_live_control() {
-    use peridyn::solver::Param;
+    use peridyn_core::solver::Param;
     let scene = Scene::load_with(PRESET, Some("coarse"), &[]).unwrap();
     let mean = |tune: Option<f64>| {
         let mut sim = NernstPlanckSimulation::<3>::new(&scene).unwrap();

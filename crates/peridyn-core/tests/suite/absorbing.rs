@@ -3,9 +3,9 @@
 //! back in time (the thesis's references), node by node on the shared lattice; and against
 //! the truncation without a layer (free or Neumann ends).
 
-use peridyn::scene::Scene;
-use peridyn::sim::ScalarSimulation;
-use peridyn::solver::Stepper;
+use peridyn_core::scene::Scene;
+use peridyn_core::sim::ScalarSimulation;
+use peridyn_core::solver::Stepper;
 
 fn scene(preset: &str, variant: Option<&str>, set: &[&str]) -> Scene {
     let set: Vec<String> = set.iter().map(|s| s.to_string()).collect();

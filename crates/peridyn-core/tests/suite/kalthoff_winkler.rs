@@ -5,9 +5,9 @@
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use peridyn::runner::{self, NullSink};
-use peridyn::scene::Scene;
-use peridyn::sim;
+use peridyn_core::runner::{self, NullSink};
+use peridyn_core::scene::Scene;
+use peridyn_core::sim;
 
 #[test]
 fn medium_crack_angles_are_between_60_and_75_degrees() {
