@@ -832,19 +832,19 @@ fn splits_conserve_mass_and_momentum_on_a_free_body() {
     println!(
         "{} particles after {split_steps} splitting steps ({} parents), {} bonds broken",
         sim.len(),
-        sim.split_parents,
+        sim.split_parents(),
         sim.broken_bonds()
     );
     assert!(
         split_steps >= 1 && sim.len() > 900,
         "the expansion must trigger splits"
     );
-    assert_eq!(sim.len(), 900 + 3 * sim.split_parents as usize);
+    assert_eq!(sim.len(), 900 + 3 * sim.split_parents() as usize);
     let levels = sim.levels();
     assert!(levels.iter().all(|&l| l <= 1), "one refinement level");
     assert_eq!(
         levels.iter().filter(|&&l| l == 1).count(),
-        4 * sim.split_parents as usize
+        4 * sim.split_parents() as usize
     );
 }
 
@@ -995,7 +995,7 @@ fn split_parameters_act_in_place() {
         for _ in 0..150 {
             sim.step().unwrap();
         }
-        sim.split_parents
+        sim.split_parents()
     };
     let (default, strict) = (run(None), run(Some(0.9)));
     println!("parents split in 150 steps: α = 0.5: {default}, α = 0.9: {strict}");
@@ -1126,8 +1126,8 @@ fn the_strain_gate_changes_no_split() {
             "{}: {} particles ({} parents split)",
             scene.name,
             gated.len(),
-            gated.split_parents
+            gated.split_parents()
         );
-        assert!(gated.split_parents > 0);
+        assert!(gated.split_parents() > 0);
     }
 }

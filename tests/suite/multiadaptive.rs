@@ -88,12 +88,12 @@ fn at(samples: &[Sample], name: &str, t: f64) -> f64 {
 fn multi_adaptive_run(variant: &str) -> Vec<Sample> {
     let mut multi = DynamicSimulation::<2>::new(&scene(variant)).unwrap();
     let body = |sim: &DynamicSimulation<2>| -> f64 {
-        let g = sim.multigrid.as_ref().unwrap();
+        let g = sim.multigrid().unwrap();
         g.active_volumes(sim.volumes()).iter().sum()
     };
     let area = body(&multi);
     let run = samples(&mut multi);
-    let g = multi.multigrid.as_ref().unwrap();
+    let g = multi.multigrid().unwrap();
     let classes_agree = g.classes_from_scratch(multi.families()) == g.class;
     let tiling = (body(&multi) / area - 1.0).abs();
     let fine_active = series(&run, "grid/fine_active");
@@ -255,7 +255,7 @@ end = "10 steps"
     }
     sim.refresh_forces();
     let active: Vec<bool> = {
-        let g = sim.multigrid.as_ref().unwrap();
+        let g = sim.multigrid().unwrap();
         g.class.iter().map(|c| c.is_active()).collect()
     };
     let force = |sim: &DynamicSimulation<2>, i: usize| {

@@ -1,12 +1,15 @@
 //! Absorbing layers at the truncation of unbounded domains (thesis Chapter 4;
 //! seed-thesis-ch4-5 §1–§4): the far field's dispersion relations, the minimum-norm fit of
-//! its modes, and the layer's precomputed update rows. The scalar equations' layers
-//! (diffusion (§4.1), scalar waves (§4.2)) are built here from a scene.
+//! its modes, and the layer's precomputed update rows; the layers of the scalar equations
+//! (diffusion (§4.1), scalar waves (§4.2): `scalar_layer`) and of bond-based PD (§4.3:
+//! `bond_layer`), built from a scene. The simulations call them through thin plug-ins.
 
+pub mod bond_layer;
 pub mod dispersion;
 pub mod first_order;
 pub mod fit;
 pub mod layer;
+pub mod scalar_layer;
 
 pub use dispersion::{BondLattice, ScalarLattice};
 pub use fit::Pseudoinverse;

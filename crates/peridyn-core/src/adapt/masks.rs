@@ -63,6 +63,14 @@ impl RowMask for SchemeClass {
     }
 }
 
+/// Only active nodes are integrated: a mask of the nodes a level pass or a kick skips.
+impl RowMask for GridClass {
+    #[inline(always)]
+    fn skipped(self) -> bool {
+        !self.is_active()
+    }
+}
+
 /// The phase of a node (defined with the laws that read it, `model::corrosion`).
 pub use crate::model::corrosion::Phase;
 

@@ -76,23 +76,20 @@ impl Relaxation {
         } else {
             // c from the local stiffness of the last two iterations.
             let previous = &self.previous_force;
-            let (numerator, denominator) = (0..force.len())
-                .into_par_iter()
-                .map(|k| {
-                    let mut n = 0.0;
-                    let mut d = 0.0;
-                    for i in 0..2 {
-                        let u = positions[k][i] - reference[k][i];
-                        let v = velocity[k][i];
-                        if v != 0.0 {
-                            let stiffness = -(force[k][i] - previous[k][i]) / (density[k] * v);
-                            n += u * stiffness * u;
-                        }
-                        d += u * u;
+            let [numerator, denominator] = super::ordered_sum(force.len(), |k| {
+                let mut n = 0.0;
+                let mut d = 0.0;
+                for i in 0..2 {
+                    let u = positions[k][i] - reference[k][i];
+                    let v = velocity[k][i];
+                    if v != 0.0 {
+                        let stiffness = -(force[k][i] - previous[k][i]) / (density[k] * v);
+                        n += u * stiffness * u;
                     }
-                    (n, d)
-                })
-                .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+                    d += u * u;
+                }
+                [n, d]
+            });
             let radicand = if denominator > 0.0 {
                 numerator / denominator
             } else {
@@ -128,10 +125,8 @@ impl Relaxation {
 /// ‖F‖₂ of the residual over ‖F_ext‖₂ (1 where no load is applied and F ≠ 0).
 pub fn residual(force: &[[f64; 2]], external: &[[f64; 2]]) -> f64 {
     let norm = |f: &[[f64; 2]]| {
-        f.par_iter()
-            .map(|v| v[0] * v[0] + v[1] * v[1])
-            .sum::<f64>()
-            .sqrt()
+        let [sum] = super::ordered_sum(f.len(), |k| [f[k][0] * f[k][0] + f[k][1] * f[k][1]]);
+        sum.sqrt()
     };
     let (r, e) = (norm(force), norm(external));
     if e > 0.0 {

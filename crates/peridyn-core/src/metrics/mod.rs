@@ -1,6 +1,8 @@
-//! Measurements on the node state: energies, momentum, crack-path angle, crack branching.
+//! Measurements on the node state: energies, momentum, crack-path angle, crack branching,
+//! probes and the near-field energy.
 
 pub mod branching;
+pub mod probes;
 
 use std::collections::VecDeque;
 

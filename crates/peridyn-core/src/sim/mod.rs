@@ -4,10 +4,9 @@
 
 pub mod dual_horizon;
 pub mod dynamics;
-mod far_field;
 pub mod nernst_planck;
 pub mod scalar;
-mod unbounded;
+mod wave;
 
 pub use dual_horizon::DualHorizonSimulation;
 pub use dynamics::DynamicSimulation;

@@ -8,7 +8,8 @@
 
 use rayon::prelude::*;
 
-use super::far_field::{self, Absorber, Probe, Wave};
+use super::wave::Wave;
+use crate::absorb::scalar_layer::Absorber;
 use crate::adapt::fixed::{self, FixedHybrid};
 use crate::adapt::masks::{GridClass, Phase, SchemeClass};
 use crate::adapt::multigrid::MultiGrid;
@@ -17,6 +18,7 @@ use crate::discretization::{Discretization, Families, Field, Quadrature};
 use crate::frame::{Frame, NodeField};
 use crate::integrate::linear::BandMatrix;
 use crate::integrate::stability;
+use crate::metrics::probes::{self, Probe};
 use crate::model::corrosion::CorrosionLaw;
 use crate::model::diffusion::DiffusionKernel;
 use crate::model::pmb::{Influence, PmbLaw};
@@ -847,7 +849,7 @@ impl<const D: usize> Stepper for ScalarSimulation<D> {
             -amplitude
         };
         if self.absorber.is_some() || self.wave.is_some() {
-            let energy = far_field::near_field_energy(
+            let energy = probes::near_field_energy(
                 &self.operator,
                 self.field(),
                 self.wave.as_ref().map(|w| w.velocity.as_slice()),

@@ -3,12 +3,14 @@
 //! stage timers, the run error type, and the setup every simulation shares. Live parameters
 //! reach a running simulation through `Stepper::set_dt` and `Stepper::tune`.
 
+pub mod adaptation;
 pub mod clock;
 pub mod error;
 pub mod setup;
 pub mod stages;
 pub mod state;
 
+pub use adaptation::{Adaptation, Tick};
 pub use clock::Clock;
 pub use error::SimError;
 pub use setup::{Integrator, StableStep};
@@ -80,7 +82,7 @@ impl RunState {
     pub fn new(
         scene: &Scene,
         stable: StableStep,
-        stages: &'static [&'static str],
+        stages: &[&'static str],
     ) -> Result<RunState, SceneError> {
         let clock = setup::clock(scene, &stable)?;
         Ok(RunState {

@@ -7,16 +7,21 @@ use std::time::{Duration, Instant};
 /// Wall time spent in each named stage of `step()`.
 #[derive(Debug, Clone)]
 pub struct Stages {
-    names: &'static [&'static str],
+    names: Vec<&'static str>,
     spent: Vec<Duration>,
 }
 
 impl Stages {
-    pub fn new(names: &'static [&'static str]) -> Stages {
+    pub fn new(names: &[&'static str]) -> Stages {
         Stages {
-            names,
+            names: names.to_vec(),
             spent: vec![Duration::ZERO; names.len()],
         }
+    }
+
+    /// The index of the stage called `name`, if the integrator has it.
+    pub fn index(&self, name: &str) -> Option<usize> {
+        self.names.iter().position(|n| *n == name)
     }
 
     /// Adds `d` to stage `stage` (an index into the names).
@@ -26,10 +31,7 @@ impl Stages {
 
     /// Time spent so far in the stage called `name`, if the integrator has it.
     pub fn get(&self, name: &str) -> Option<Duration> {
-        self.names
-            .iter()
-            .position(|n| *n == name)
-            .map(|k| self.spent[k])
+        self.index(name).map(|k| self.spent[k])
     }
 
     /// (name, time spent) in the integrator's order.

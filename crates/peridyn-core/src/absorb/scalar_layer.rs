@@ -1,13 +1,13 @@
-//! What a scalar simulation of an unbounded domain adds: the absorbing layer built from the
-//! scene and refitted when Δt changes (thesis §4.1–4.2), the scalar wave's velocity state for
-//! damped velocity-Verlet (4.62), and the near-field energy the viewer watches fall.
+//! The absorbing layer of a scalar simulation of an unbounded domain (diffusion, corrosion,
+//! scalar waves): built from the scene and refitted when Δt changes (thesis §4.1–4.2), its
+//! nodes' values (and a wave's rates) overwritten each step, and its conditioning for
+//! `check`.
 
 use crate::absorb::{self, AbsorbingLayer, BondFarField, ScalarFarField, ScalarLattice};
 use crate::discretization::{Families, Quadrature};
 use crate::frame::ClassField;
 use crate::model::diffusion::DiffusionKernel;
 use crate::scene::{AbsorbingMethod, AbsorbingSpec, Physics, Scene};
-use crate::scheme::ScalarOperator;
 
 /// The layer's class field ids.
 const NEAR_FIELD: u16 = 0;
@@ -368,129 +368,4 @@ impl<const D: usize> Absorber<D> {
             },
         ]
     }
-}
-
-/// The velocity state of damped velocity-Verlet (4.62) for a scalar wave, and the previous
-/// time level the absorbing layer fits on.
-pub struct Wave {
-    pub damping: f64,
-    pub velocity: Vec<f64>,
-    pub previous_field: Vec<f64>,
-    pub previous_velocity: Vec<f64>,
-    /// Per operator row: v^n + Δt/2 a^n between the two half steps.
-    pub half: Vec<f64>,
-    /// The rate buffer holds L u of the current field.
-    pub forces_fresh: bool,
-}
-
-impl Wave {
-    pub fn new(damping: f64, field: &[f64], rows: usize) -> Wave {
-        Wave {
-            damping,
-            velocity: vec![0.0; field.len()],
-            // At rest before t = 0 (the far field is at rest; u̇0 = 0 in every example).
-            previous_field: field.to_vec(),
-            previous_velocity: vec![0.0; field.len()],
-            half: vec![0.0; rows],
-            forces_fresh: false,
-        }
-    }
-}
-
-/// A probe: its name and the node nearest its point.
-pub struct Probe {
-    pub name: String,
-    pub node: usize,
-    /// The operator row of the node (None if it is held or in the layer).
-    pub row: Option<usize>,
-}
-
-impl Probe {
-    pub fn resolve<const D: usize>(
-        probes: &[(String, Vec<f64>)],
-        positions: &[[f64; D]],
-        operator: &ScalarOperator,
-    ) -> Vec<Probe> {
-        probes
-            .iter()
-            .map(|(name, p)| {
-                let node = nearest_node(positions, p);
-                let row = operator.rows.iter().position(|&i| i as usize == node);
-                Probe {
-                    name: name.clone(),
-                    node,
-                    row,
-                }
-            })
-            .collect()
-    }
-
-    /// The field and its energy density ½ u̇² + ¼ Σ_j w (u_j − u_i)² (waves) or ½ C²
-    /// (diffusion) at the probe's node.
-    pub fn scalars(
-        &self,
-        operator: &ScalarOperator,
-        field: &[f64],
-        velocity: Option<&[f64]>,
-    ) -> [(String, f64); 2] {
-        let u = field[self.node];
-        let density = match (velocity, self.row) {
-            (Some(v), Some(r)) => {
-                0.5 * v[self.node] * v[self.node] + 0.25 * bond_squares(operator, r, field)
-            }
-            (Some(v), None) => 0.5 * v[self.node] * v[self.node],
-            (None, _) => 0.5 * u * u,
-        };
-        [
-            (format!("probe/{}/value", self.name), u),
-            (format!("probe/{}/energy_density", self.name), density),
-        ]
-    }
-}
-
-/// The node nearest point `p`.
-pub fn nearest_node<const D: usize>(positions: &[[f64; D]], p: &[f64]) -> usize {
-    let distance = |x: &[f64; D]| x.iter().zip(p).map(|(a, b)| (a - b) * (a - b)).sum::<f64>();
-    (0..positions.len())
-        .min_by(|&a, &b| distance(&positions[a]).total_cmp(&distance(&positions[b])))
-        .unwrap_or(0)
-}
-
-/// Σ_j w_ij (u_j − u_i)² over row `r`'s off-diagonal entries (i its node).
-fn bond_squares(operator: &ScalarOperator, r: usize, field: &[f64]) -> f64 {
-    let i = operator.rows[r];
-    let range = operator.offsets[r]..operator.offsets[r + 1];
-    operator.columns[range.clone()]
-        .iter()
-        .zip(&operator.weights[range])
-        .filter(|&(&j, _)| j != i)
-        .map(|(&j, w)| w * (field[j as usize] - field[i as usize]).powi(2))
-        .sum()
-}
-
-/// The energy in the near field (rows of `operator` not in the layer, weighted by `volumes`):
-/// diffusion Π = ½ Σ C² V (seed-thesis-ch4-5 erratum 13); a wave
-/// ½ Σ V (u̇² + ½ Σ_j w_ij (u_j − u_i)²) (the discrete form of (4.99)).
-pub fn near_field_energy(
-    operator: &ScalarOperator,
-    field: &[f64],
-    velocity: Option<&[f64]>,
-    volumes: &[f64],
-    absorbing: Option<&[bool]>,
-) -> f64 {
-    let mut sum = 0.0;
-    for (r, &i) in operator.rows.iter().enumerate() {
-        let i = i as usize;
-        if absorbing.is_some_and(|a| a[i]) {
-            continue;
-        }
-        let u = field[i];
-        sum += 0.5
-            * volumes[i]
-            * match velocity {
-                None => u * u,
-                Some(v) => v[i] * v[i] + 0.5 * bond_squares(operator, r, field),
-            };
-    }
-    sum
 }

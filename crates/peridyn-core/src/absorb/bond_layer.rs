@@ -1,10 +1,10 @@
-//! What a bond-based simulation of an unbounded domain adds (thesis §4.3): the absorbing layer
-//! of the linearized far field (4.100)–(4.102), the displacement and velocity of the previous
-//! time level it fits on, the probes, and the near-field energy (4.169) the viewer watches fall.
+//! The absorbing layer of a bond-based simulation of an unbounded domain (thesis §4.3): the
+//! linearized far field (4.100)–(4.102), the displacement and velocity of the previous time
+//! level it fits on, and the near-field energy (4.169) the viewer watches fall.
 //! The layer acts on displacements u = y − x; its nodes are overwritten after the drift
 //! (u^{n+1}) and after the second kick (u̇^{n+1}), both from the state at t^n, t^{n−1} (4.166).
 
-use super::far_field::{Absorber, nearest_node};
+use super::scalar_layer::Absorber;
 use crate::absorb::{BondFarField, BondLattice, dispersion};
 use crate::adapt::interface::InterfaceDamping;
 use crate::discretization::{Families, Quadrature};
@@ -196,34 +196,6 @@ impl<const D: usize> BondLayer<D> {
         self.previous_velocity.copy_from_slice(v);
         // The rows are refitted for whatever Δt the restored clock holds.
         Ok(())
-    }
-}
-
-/// The probes of a dynamic scene: (name, nearest node).
-pub fn probes<const D: usize>(scene: &Scene, reference: &[[f64; D]]) -> Vec<(String, usize)> {
-    scene
-        .probes
-        .iter()
-        .map(|(name, p)| (name.clone(), nearest_node(reference, p)))
-        .collect()
-}
-
-/// `probe/<name>/{displacement_<axis>,energy_density}` of every probe.
-pub fn probe_scalars<const D: usize>(
-    probes: &[(String, usize)],
-    reference: &[[f64; D]],
-    positions: &[[f64; D]],
-    energy_density: impl Fn(usize) -> f64,
-    out: &mut Vec<(String, f64)>,
-) {
-    for (name, i) in probes {
-        for k in 0..D {
-            out.push((
-                format!("probe/{name}/displacement_{}", ["x", "y", "z"][k]),
-                positions[*i][k] - reference[*i][k],
-            ));
-        }
-        out.push((format!("probe/{name}/energy_density"), energy_density(*i)));
     }
 }
 
