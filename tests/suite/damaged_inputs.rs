@@ -43,7 +43,7 @@ impl Rng {
     }
 }
 
-/// How a run ended: its exit code (None if killed at `LIMIT`, when `serving` allows it) and
+/// How a run ended: its exit code (None if killed at `LIMIT`, which only `serving` allows) and
 /// its stderr.
 fn run(args: &[&str], serving: bool) -> (Option<i32>, String) {
     static RUNS: AtomicUsize = AtomicUsize::new(0);
@@ -72,26 +72,40 @@ fn run(args: &[&str], serving: bool) -> (Option<i32>, String) {
         assert!(serving, "{args:?} ran over {LIMIT:?}: {stderr}");
         return (None, stderr);
     };
-    (status.code(), stderr)
+    // A panic exits with 101; an abort (a failed allocation) ends with a signal.
+    let code = status.code();
+    assert!(code.is_some(), "{args:?}: ended by {status}: {stderr}");
+    (code, stderr)
 }
 
-/// Runs `args` on the damaged `file`: exit 0, 2 or 3, and a message naming the file if not 0.
-/// Returns the exit code and stderr.
+/// Runs `args` on the damaged `file`: exit 0, 2 with a message naming the file, or 3 with the
+/// reason the run became unstable (damaged values can make it so). Returns the exit code and
+/// stderr.
 fn boundary(file: &Path, args: &[&str]) -> (Option<i32>, String) {
     let (code, stderr) = run(args, args.contains(&"--serve"));
     let what = format!("{args:?} on {}", file.display());
     assert!(!stderr.contains("panicked"), "{what}: {stderr}");
     assert!(
         code.is_none() || matches!(code, Some(0 | 2 | 3)),
-        "{what}: exit {code:?} (a panic is 101, a signal none): {stderr}"
+        "{what}: exit {code:?} (a panic is 101): {stderr}"
     );
-    if code.is_some_and(|c| c != 0) {
-        let named = stderr
-            .lines()
-            .any(|l| l.starts_with("error: ") && l.contains(&file.display().to_string()));
+    let errors: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.starts_with("error: "))
+        .collect();
+    if code == Some(2) {
+        let named = errors
+            .iter()
+            .any(|l| l.contains(&file.display().to_string()));
         assert!(
             named,
-            "{what}: exit {code:?}, no message naming the file: {stderr}"
+            "{what}: exit 2, no message naming the file: {stderr}"
+        );
+    }
+    if code == Some(3) {
+        assert!(
+            !errors.is_empty(),
+            "{what}: exit 3 without its reason: {stderr}"
         );
     }
     (code, stderr)
@@ -359,6 +373,7 @@ fn damaged_recordings_checkpoints_and_scripts_are_refused_naming_the_file() {
     // Checkpoints: damaged bytes fail the checksum or the length; damage behind a checksum
     // computed again reaches the header's and the state's decoders.
     let mut variants = damaged(&ckpt, &rrd, &mut rng, 8);
+
     for i in 0..16 {
         let mut b = ckpt.clone();
         let at = 31 + rng.below(b.len() - 39);
@@ -382,6 +397,35 @@ fn damaged_recordings_checkpoints_and_scripts_are_refused_naming_the_file() {
         );
         runs += 1;
     }
+
+    // A cadence out of range used to reach the command line's `--checkpoint-every` check,
+    // which did not name the file.
+    let pattern = b"checkpoint_every = \"20 steps\"";
+    let at = ckpt
+        .windows(pattern.len())
+        .position(|w| w == pattern)
+        .unwrap()
+        + 20;
+    let mut zero = ckpt.clone();
+    zero[at..at + 2].copy_from_slice(b"00");
+    let path = temp("ckpt-cadence.ckpt");
+    std::fs::write(&path, seal(zero)).unwrap();
+    let out = temp("resumed.rrd");
+    let (code, stderr) = boundary(
+        &path,
+        &[
+            "resume",
+            path.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(
+        stderr.contains("checkpoint_every: `00 steps`: the cadence must be > 0"),
+        "{stderr}"
+    );
+    runs += 1;
 
     // Scripts.
     for path in write_all(
