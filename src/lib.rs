@@ -19,3 +19,4 @@ pub mod readback;
 pub mod record;
 pub mod replay;
 pub mod report;
+pub mod rrd;

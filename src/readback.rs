@@ -2,10 +2,8 @@
 //! the number of points at each step, the raw per-node values and the text documents.
 
 use std::collections::BTreeMap;
-use std::io::BufReader;
 use std::path::Path;
 
-use rerun::external::re_log_encoding::DecoderApp;
 use rerun::log::{Chunk, LogMsg};
 use rerun::{ComponentIdentifier, StoreKind, TimelineName};
 
@@ -96,9 +94,7 @@ pub fn read_each_with(
     path: &Path,
     positions: Positions,
 ) -> Result<Vec<(String, Recording)>, String> {
-    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let decoder = DecoderApp::decode_eager(BufReader::new(file))
-        .map_err(|e| format!("{}: not a Rerun recording: {e}", path.display()))?;
+    let messages = crate::rrd::open(path)?;
     let step = TimelineName::from("step");
     let sim_time = TimelineName::from("sim_time");
     let pos2: ComponentIdentifier = rerun::Points2D::descriptor_positions().component;
@@ -120,8 +116,8 @@ pub fn read_each_with(
             out.len() - 1
         }
     };
-    for msg in decoder {
-        let msg = msg.map_err(|e| format!("{}: {e}", path.display()))?;
+    for msg in messages {
+        let msg = msg?;
         let (store, arrow) = match &msg {
             LogMsg::SetStoreInfo(info) if info.info.store_id.kind() == StoreKind::Recording => {
                 index_of(&mut out, info.info.store_id.recording_id().to_string());
@@ -130,7 +126,7 @@ pub fn read_each_with(
             LogMsg::ArrowMsg(store, arrow) => (store, arrow),
             _ => continue,
         };
-        let chunk = Chunk::from_arrow_msg(arrow).map_err(|e| e.to_string())?;
+        let chunk = Chunk::from_arrow_msg(arrow).map_err(|e| format!("{}: {e}", path.display()))?;
         if store.kind() == StoreKind::Blueprint {
             // A recording's default blueprint follows its store info: it belongs to the
             // recording announced last.

@@ -16,6 +16,7 @@ use crate::control::runspec::{self, RunSpec};
 use crate::control::script::{self, Timed};
 use crate::control::{Driver, driver};
 use crate::record::{Outlet, RecordTarget};
+use crate::replay::SendError;
 use crate::runner::RunSummary;
 use crate::scene::Scene;
 
@@ -141,7 +142,7 @@ pub fn resume(
         .as_deref()
         .map(|every| Plan::new(checkpoint.to_path_buf(), every))
         .transpose()
-        .map_err(Failure::BadInput)?;
+        .map_err(|e| Failure::BadInput(format!("{}: {e}", checkpoint.display())))?;
     let session = format!("resumed-{}", std::process::id());
     let outputs = Outputs {
         vtu: options.vtu.clone(),
@@ -298,7 +299,10 @@ pub fn replay(
     }
     let stop = stop_flag();
     let outlet = Outlet::open(&target).map_err(Failure::Runtime)?;
-    let sent = crate::replay::send(file, &outlet).map_err(Failure::Runtime)?;
+    let sent = crate::replay::send(file, &outlet).map_err(|e| match e {
+        SendError::Recording(e) => Failure::BadInput(e),
+        SendError::Viewer(e) => Failure::Runtime(e),
+    })?;
     println!("replayed {sent} messages from {}", file.display());
     if serving {
         wait_while_serving(&stop);

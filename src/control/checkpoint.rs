@@ -52,6 +52,22 @@ pub struct Header {
 }
 
 impl Header {
+    /// The values a session takes as they are (the discretization and the script are checked
+    /// where they are applied, as a live command's would be).
+    fn check(&self) -> Result<(), String> {
+        crate::scene::check_chi(self.chi).map_err(|e| format!("chi: {e}"))?;
+        if self.run == 0 {
+            return Err("run: the runs count from 1, got 0".into());
+        }
+        if self.every == 0 {
+            return Err("every: the frame cadence must be ≥ 1 step, got 0".into());
+        }
+        if let Some(every) = &self.checkpoint_every {
+            cadence(every).map_err(|e| format!("checkpoint_every: {e}"))?;
+        }
+        Ok(())
+    }
+
     pub fn run_spec(&self) -> Result<RunSpec, String> {
         RunSpec::from_text(&self.spec)
     }
@@ -121,7 +137,9 @@ impl Checkpoint {
             ));
         }
         let length = u64::from_le_bytes(rest[4..12].try_into().unwrap_or_default());
-        let expected = (MAGIC.len() + 12) as u64 + length + 8;
+        // A damaged length may be anything up to 2⁶⁴ − 1: the sum saturates instead of wrapping
+        // around to a size that matches.
+        let expected = length.saturating_add((MAGIC.len() + 12 + 8) as u64);
         if bytes.len() as u64 != expected {
             return Err(format!(
                 "the checkpoint is {} bytes where its header announces {expected}: truncated \
@@ -144,6 +162,9 @@ impl Checkpoint {
             .map_err(|_| "the checkpoint's header is not UTF-8")?;
         let header: Header =
             toml::from_str(header_text).map_err(|e| format!("the checkpoint's header: {e}"))?;
+        header
+            .check()
+            .map_err(|e| format!("the checkpoint's header: {e}"))?;
         let state = State::decode(&payload[8 + header_len..])
             .map_err(|e| format!("the checkpoint's state: {e}"))?;
         Ok(Checkpoint { header, state })
@@ -164,6 +185,19 @@ impl Checkpoint {
     }
 }
 
+/// A checkpoint cadence: `N steps`, a bare N (steps) or a time (`20 us`), more than zero.
+fn cadence(every: &str) -> Result<Trigger, String> {
+    let trimmed = every.trim();
+    let every = match trimmed.parse::<u64>() {
+        Ok(n) => Trigger::Step(n),
+        Err(_) => super::script::parse_when(trimmed)?,
+    };
+    if matches!(every, Trigger::Step(0)) || matches!(every, Trigger::Time(t) if t <= 0.0) {
+        return Err(format!("`{trimmed}`: the cadence must be > 0"));
+    }
+    Ok(every)
+}
+
 /// When to write checkpoints: every N steps or every span of simulated time.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plan {
@@ -176,15 +210,7 @@ pub struct Plan {
 impl Plan {
     /// `every` as `N steps`, a bare N (steps) or a time (`20 us`).
     pub fn new(path: std::path::PathBuf, every: &str) -> Result<Plan, String> {
-        let trimmed = every.trim();
-        let every = match trimmed.parse::<u64>() {
-            Ok(n) => Trigger::Step(n),
-            Err(_) => super::script::parse_when(trimmed)
-                .map_err(|e| format!("--checkpoint-every: {e}"))?,
-        };
-        if matches!(every, Trigger::Step(0)) || matches!(every, Trigger::Time(t) if t <= 0.0) {
-            return Err("--checkpoint-every must be > 0".into());
-        }
+        let every = cadence(every).map_err(|e| format!("--checkpoint-every: {e}"))?;
         Ok(Plan {
             path,
             next: every,
@@ -267,6 +293,39 @@ mod tests {
         assert!(Checkpoint::decode(&other).unwrap_err().contains("format 9"));
         assert!(Checkpoint::decode(b"random bytes, not a checkpoint at all").is_err());
         assert_eq!(c.header.script().unwrap().len(), 1);
+        let mut huge = bytes.clone();
+        huge[MAGIC.len() + 4..MAGIC.len() + 12].copy_from_slice(&u64::MAX.to_le_bytes());
+        assert!(
+            Checkpoint::decode(&huge)
+                .unwrap_err()
+                .contains("truncated or extended")
+        );
+    }
+
+    #[test]
+    fn a_sealed_checkpoint_with_values_out_of_range_is_refused() {
+        type Damage = fn(&mut Header);
+        let cases: [(Damage, &str); 6] = [
+            (|h| h.chi = f64::NAN, "chi: χ must be in (0, 1]"),
+            (
+                |h| h.checkpoint_every = Some("0 steps".into()),
+                "checkpoint_every: `0 steps`: the cadence must be > 0",
+            ),
+            (
+                |h| h.checkpoint_every = Some("-5 us".into()),
+                "checkpoint_every: `-5` is not a time or step count ≥ 0",
+            ),
+            (|h| h.chi = 1.5, "chi: χ must be in (0, 1]"),
+            (|h| h.every = 0, "every: the frame cadence must be ≥ 1"),
+            (|h| h.run = 0, "run: the runs count from 1"),
+        ];
+        for (damage, needle) in cases {
+            let mut c = sample();
+            damage(&mut c.header);
+            let e = Checkpoint::decode(&c.encode().unwrap()).unwrap_err();
+            assert!(e.starts_with("the checkpoint's header: "), "{e}");
+            assert!(e.contains(needle), "{e}");
+        }
     }
 
     #[test]

@@ -307,7 +307,9 @@ impl Driver {
             Effect::SetEvery(_) => Ok(()),
             Effect::StartSaving(path) => self.save(Some(&path)),
             Effect::StopSaving => self.save(None),
-            Effect::Replay(path) => crate::replay::send(&path, &self.outlet).map(|_| ()),
+            Effect::Replay(path) => crate::replay::send(&path, &self.outlet)
+                .map(|_| ())
+                .map_err(|e| e.to_string()),
             Effect::Load { preset, variant } => self.load(&preset, variant.as_deref()),
             Effect::Rebuild => self.rebuild(&before),
         };

@@ -8,6 +8,7 @@ mod checkpoint;
 mod cli;
 mod clock;
 mod control_cli;
+mod damaged_inputs;
 mod diffusion_manufactured;
 mod driver;
 mod dual_horizon;
