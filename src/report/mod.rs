@@ -13,7 +13,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use crate::runner::{self, NullSink};
-use crate::scene::{Scene, SchemeKind, override_table};
+use crate::scene::{Scene, override_table};
 use crate::sim;
 
 /// Every combination of the axes' values, in order (the last axis varies fastest).
