@@ -39,6 +39,7 @@ pub fn check_split_strain(alpha: f64) -> Result<f64, String> {
     }
 }
 
+/// A finite number > 0.
 pub(super) fn positive(ctx: &ErrorContext, field: &str, v: f64) -> Result<f64, SceneError> {
     if v > 0.0 && v.is_finite() {
         Ok(v)
@@ -84,6 +85,7 @@ pub(super) fn length(
     }
 }
 
+/// A point (or vector) with one component per dimension, in SI units.
 pub(super) fn point(p: &Point, dim: usize, path: &str) -> Result<Vec<f64>, String> {
     if p.len() != dim {
         return Err(format!(
@@ -94,6 +96,7 @@ pub(super) fn point(p: &Point, dim: usize, path: &str) -> Result<Vec<f64>, Strin
     Ok(si(p))
 }
 
+/// A point as an array, for the parts defined in one dimension only (`N` = `dim`).
 pub(super) fn fixed<const N: usize>(p: &Point, dim: usize, path: &str) -> Result<[f64; N], String> {
     let v = point(p, dim, path)?;
     let mut out = [0.0; N];
@@ -101,6 +104,7 @@ pub(super) fn fixed<const N: usize>(p: &Point, dim: usize, path: &str) -> Result
     Ok(out)
 }
 
+/// An axis by name (`"x"`, `"y"`, `"z"`) that the scene's dimension has.
 pub(super) fn axis_index(name: &str, dim: usize, path: &str) -> Result<usize, String> {
     let i = match name {
         "x" => 0,
