@@ -11,6 +11,7 @@
 use std::fmt;
 use std::path::PathBuf;
 
+use crate::scene::StepSize;
 use crate::scene::units::parse_quantity;
 
 /// A time step as given: seconds, or a fraction of the stable bound.
@@ -18,6 +19,16 @@ use crate::scene::units::parse_quantity;
 pub enum DtValue {
     Seconds(f64),
     Stable(f64),
+}
+
+impl DtValue {
+    /// The step as a preset gives it, for the one Δt policy (`solver::dt_policy`).
+    pub fn step_size(self) -> StepSize {
+        match self {
+            DtValue::Seconds(s) => StepSize::Absolute(s),
+            DtValue::Stable(f) => StepSize::FractionOfStable(f),
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]

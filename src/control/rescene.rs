@@ -1,11 +1,26 @@
-//! The scene of a run: the preset as given, with the discretization the commands chose. The
-//! choices are merged into the preset text (into the chosen variant's table) and the result
-//! goes through the full validation again (units, sizes, memory), so a bad choice is refused
-//! with the same messages as a bad preset.
+//! The scene of a run: the preset as given, with the discretization the commands chose
+//! (`Discretization`, defined here and held by `state`). The choices are merged into the preset
+//! text (into the chosen variant's table) and the result goes through the full validation again
+//! (units, sizes, memory), so a bad choice is refused with the same messages as a bad preset.
 
 use crate::scene::{Scene, SceneError};
 
-use super::state::Discretization;
+/// The discretization choices that need a rebuild.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Discretization {
+    /// Horizon factor m = δ/Δx.
+    pub m: f64,
+    /// Lattice spacing Δx (m).
+    pub dx: f64,
+    pub scheme: String,
+    /// Grid ratio Δx⁺/Δx⁻ of a multi-grid scene (None: one grid).
+    pub ratio: Option<usize>,
+    /// A fine region Ω⁻ chosen live (`multigrid.region` as an inline TOML table; None: the
+    /// preset's own).
+    pub region: Option<String>,
+    /// An initial fine band chosen live (`multigrid.band`; None: the preset's own).
+    pub band: Option<String>,
+}
 
 /// The discretization a scene was built with (m = δ/Δx; the scheme by its preset name).
 pub fn discretization_of(scene: &Scene) -> Discretization {

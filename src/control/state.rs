@@ -4,11 +4,14 @@
 
 use std::path::{Path, PathBuf};
 
-use super::command::{Command, DtValue};
+use super::command::Command;
+// The choices live with the rebuild that reads them; named here too, where the state holds them.
+pub use super::rescene::Discretization;
+use super::rescene::discretization_of;
 use crate::frame::Frame;
 use crate::scene::Scene;
 use crate::scene::schema::SchemeKind;
-use crate::solver::{Param, SimInfo};
+use crate::solver::{Asker, Param, SimInfo, StableStep, dt_policy};
 
 /// What the driver must do after a command was accepted.
 #[derive(Debug, Clone, PartialEq)]
@@ -35,23 +38,6 @@ pub enum Effect {
         preset: String,
         variant: Option<String>,
     },
-}
-
-/// The discretization choices that need a rebuild.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Discretization {
-    /// Horizon factor m = δ/Δx.
-    pub m: f64,
-    /// Lattice spacing Δx (m).
-    pub dx: f64,
-    pub scheme: String,
-    /// Grid ratio Δx⁺/Δx⁻ of a multi-grid scene (None: one grid).
-    pub ratio: Option<usize>,
-    /// A fine region Ω⁻ chosen live (`multigrid.region` as an inline TOML table; None: the
-    /// preset's own).
-    pub region: Option<String>,
-    /// An initial fine band chosen live (`multigrid.band`; None: the preset's own).
-    pub band: Option<String>,
 }
 
 /// Live figures shown by the panel, updated from frames.
@@ -96,7 +82,8 @@ pub struct ControlState {
     /// φ_applied of an NNPP scene with reactions (`None` elsewhere), V.
     pub applied_potential: Option<f64>,
     pub dt: f64,
-    pub stable_dt: f64,
+    /// The bound a live Δt is checked against (the run's).
+    pub stable: StableStep,
     pub discretization: Discretization,
     pub every: u64,
     pub saving: Option<PathBuf>,
@@ -128,7 +115,7 @@ impl ControlState {
             .map(|h| h.chi)
             .or(adaptive_chi)
             .unwrap_or(crate::scene::DEFAULT_CHI);
-        let discretization = super::rescene::discretization_of(scene);
+        let discretization = discretization_of(scene);
         ControlState {
             preset: scene
                 .source
@@ -163,7 +150,7 @@ impl ControlState {
             split: None,
             applied_potential: None,
             dt: info.dt,
-            stable_dt: info.stable_dt,
+            stable: info.stable_step(),
             discretization,
             every: info.frame_every,
             saving: None,
@@ -226,7 +213,7 @@ impl ControlState {
     /// After a (re)build: the new run's time step, bound, cadence and size.
     pub fn on_built(&mut self, info: &SimInfo) {
         self.dt = info.dt;
-        self.stable_dt = info.stable_dt;
+        self.stable = info.stable_step();
         // A cadence set by a command outlives restarts.
         if !self
             .log
@@ -300,23 +287,12 @@ impl ControlState {
             Command::SetDt {
                 value,
                 allow_unstable,
-            } => {
-                let dt = match *value {
-                    DtValue::Seconds(s) => s,
-                    DtValue::Stable(f) => f * self.stable_dt,
-                };
-                if !(dt.is_finite() && dt > 0.0) {
-                    return Err(format!("Δt must be > 0 (got {dt:e} s)"));
-                }
-                if dt > self.stable_dt && !allow_unstable {
-                    return Err(format!(
-                        "Δt = {dt:.4e} s is {:.2}× the stable bound {:.4e} s; add `override` to run above it",
-                        dt / self.stable_dt,
-                        self.stable_dt
-                    ));
-                }
-                Effect::SetDt(dt)
-            }
+            } => Effect::SetDt(dt_policy(
+                value.step_size(),
+                &self.stable,
+                *allow_unstable,
+                Asker::Command,
+            )?),
             Command::SetHorizonFactor(m) => {
                 if !(m.is_finite() && *m >= 1.0) {
                     return Err(format!("m = {m} must be ≥ 1"));
@@ -461,6 +437,7 @@ fn check_rrd_path(path: &Path) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::control::command::DtValue;
 
     /// A real simulation's facts with round numbers (no literal: `SimInfo` grows fields).
     fn info() -> SimInfo {

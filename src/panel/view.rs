@@ -311,8 +311,8 @@ fn live_parameters(
         ui.label("");
         ui.label(format!(
             "stable bound {:.4} ns (Δt = {:.2}× bound)",
-            state.stable_dt * 1e9,
-            state.dt / state.stable_dt
+            state.stable.sharp * 1e9,
+            state.dt / state.stable.sharp
         ));
         ui.end_row();
         if ui.small_button("Δt = 0.5 × bound").clicked() {

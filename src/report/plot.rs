@@ -7,7 +7,7 @@ use std::sync::Once;
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
-use super::SweepRow;
+use super::sweep::SweepRow;
 use crate::scene::SchemeKind;
 
 static FONT: Once = Once::new();

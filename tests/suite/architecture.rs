@@ -1,199 +1,321 @@
-//! The layout's rules, read from the source: the modules of `src/` import each other in one
-//! direction only (no circle), and no module but the builder (`src/sim/`) names a concrete
-//! simulation type — everything else drives the dimension-erased `solver::Stepper`.
+//! The layout's rules, read from the source of the core crate (`crates/peridyn-core/src`) and
+//! the application (`src`, which names the core's modules through its re-exports, as
+//! `crate::scene`):
+//!
+//! - no two files import each other, directly or through others (a file-level circle: two
+//!   files whose code uses each other's items), and the top-level modules import each other
+//!   in one direction;
+//! - no file but those of the builder (the core's `sim/`) names a concrete simulation type —
+//!   every type `sim/` implements `solver::Stepper` for; everything else drives the
+//!   dimension-erased `Stepper`.
+//!
+//! `reader` says how a file's imports are read (re-exports followed to the defining file; a
+//! `mod.rs` that only declares and re-exports imports nothing).
+
+mod reader;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-/// The concrete simulation types, named only inside `src/sim/`.
-const CONCRETE: &[&str] = &["DynamicSimulation", "ScalarSimulation"];
+use reader::{Crate, Tree, words};
 
-fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
-    for entry in std::fs::read_dir(dir).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_dir() {
-            sources(&path, out);
-        } else if path.extension().is_some_and(|e| e == "rs") {
-            out.push(path);
-        }
-    }
+/// Circles that are known and left for now, each as its files (relative to the repository),
+/// with the reason. An entry that is no longer a circle fails the test, so the list only
+/// shrinks.
+const ALLOWED_CIRCLES: &[(&[&str], &str)] = &[
+    (
+        &[
+            "crates/peridyn-core/src/adapt/bonds.rs",
+            "crates/peridyn-core/src/adapt/bonds/avx2.rs",
+            "crates/peridyn-core/src/adapt/bonds/avx512.rs",
+        ],
+        "the hand-written kernels take the portable scan's helpers from the file that \
+         dispatches to them; to go with the restructuring of adapt/",
+    ),
+    (
+        &[
+            "crates/peridyn-core/src/scheme/standard.rs",
+            "crates/peridyn-core/src/scheme/standard/avx2.rs",
+            "crates/peridyn-core/src/scheme/standard/avx512.rs",
+        ],
+        "the hand-written kernels take the row types and tails from the file that dispatches \
+         to them; to go with the restructuring of the schemes",
+    ),
+    (
+        &[
+            "crates/peridyn-core/src/sim/dual_horizon.rs",
+            "crates/peridyn-core/src/sim/dynamics.rs",
+            "crates/peridyn-core/src/sim/mod.rs",
+        ],
+        "the builder's helpers (`add_initial_velocity`, …) are called by the simulations the \
+         builder builds; to go with the restructuring of sim/",
+    ),
+];
+
+/// The repository's root.
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// The code of a file without comments and without its test module (by convention the last
-/// item, after `#[cfg(test)]`).
-fn code(text: &str) -> String {
-    let text = text.split("#[cfg(test)]").next().unwrap_or_default();
-    text.lines()
-        .map(|line| match line.find("//") {
-            Some(k) => &line[..k],
-            None => line,
-        })
-        .collect::<Vec<_>>()
-        .join("\n")
+/// The core crate, the application's library and its binary.
+fn tree() -> Tree {
+    let core = root().join("crates/peridyn-core/src");
+    let app = root().join("src");
+    Tree::read(vec![
+        Crate {
+            name: "peridyn_core",
+            root: core.join("lib.rs"),
+            dir: core,
+        },
+        Crate {
+            name: "peridyn",
+            root: app.join("lib.rs"),
+            dir: app.clone(),
+        },
+        Crate {
+            name: "",
+            root: app.join("main.rs"),
+            dir: app,
+        },
+    ])
 }
 
-/// The top-level module a file belongs to (`src/scene/units.rs` → `scene`); None for the crate
-/// roots.
-fn module_of(src: &Path, file: &Path) -> Option<String> {
-    let rel = file.strip_prefix(src).unwrap();
-    let first = rel
-        .components()
-        .next()?
-        .as_os_str()
-        .to_string_lossy()
-        .to_string();
-    let name = first.trim_end_matches(".rs").to_string();
-    (name != "lib" && name != "main").then_some(name)
+/// A file as the messages name it.
+fn shown(file: &Path) -> String {
+    file.strip_prefix(root())
+        .unwrap_or(file)
+        .display()
+        .to_string()
 }
 
-/// Top-level modules named after `crate::` (also inside `crate::{a, b::c}` groups), and after
-/// `super::` in a top-level module's own file.
-fn imports(code: &str, top_file: bool) -> BTreeSet<String> {
-    let mut found = BTreeSet::new();
-    let ident = |s: &str| -> String {
-        s.chars()
-            .take_while(|c| c.is_alphanumeric() || *c == '_')
-            .collect()
-    };
-    let mut prefixes = vec!["crate::"];
-    if top_file {
-        prefixes.push("super::");
-    }
-    for prefix in prefixes {
-        for (k, _) in code.match_indices(prefix) {
-            let rest = &code[k + prefix.len()..];
-            if let Some(group) = rest.strip_prefix('{') {
-                let mut depth = 0;
-                let mut item_start = true;
-                for (i, c) in group.char_indices() {
-                    match c {
-                        '{' => depth += 1,
-                        '}' if depth == 0 => break,
-                        '}' => depth -= 1,
-                        ',' if depth == 0 => item_start = true,
-                        c if c.is_whitespace() => {}
-                        _ if item_start && depth == 0 => {
-                            found.insert(ident(&group[i..]));
-                            item_start = false;
-                        }
-                        _ => {}
-                    }
-                }
-            } else {
-                found.insert(ident(rest));
-            }
-        }
-    }
-    found.retain(|m| !m.is_empty() && m != "self");
-    found
-}
-
-/// Module → the modules it imports.
+/// Node → the nodes it imports.
 type Edges = BTreeMap<String, BTreeSet<String>>;
 
-/// The import graph of the top-level modules, and every file's code.
-fn graph() -> (Edges, Vec<(PathBuf, String)>) {
+/// The import graph of the files.
+fn file_edges(tree: &Tree) -> Edges {
+    tree.files
+        .keys()
+        .map(|f| (shown(f), tree.imports(f).iter().map(|t| shown(t)).collect()))
+        .collect()
+}
+
+/// The import graph of the top-level modules (both crates' modules by name).
+fn module_edges(tree: &Tree) -> Edges {
     let mut edges = Edges::new();
-    let mut texts = Vec::new();
-    for src in roots() {
-        let mut files = Vec::new();
-        sources(&src, &mut files);
-        for file in files {
-            let text = code(&std::fs::read_to_string(&file).unwrap());
-            if let Some(module) = module_of(&src, &file) {
-                let rel = file.strip_prefix(&src).unwrap();
-                let top_file = rel.components().count() == 1 || rel.ends_with("mod.rs");
-                let entry = edges.entry(module.clone()).or_default();
-                for m in imports(&text, top_file) {
-                    if m != module {
-                        entry.insert(m);
-                    }
-                }
+    for file in tree.files.keys() {
+        let Some(from) = tree.top_module(file) else {
+            continue;
+        };
+        let entry = edges.entry(from.to_string()).or_default();
+        for target in tree.imports(file) {
+            if let Some(to) = tree.top_module(&target).filter(|&to| to != from) {
+                entry.insert(to.to_string());
             }
-            texts.push((file, text));
         }
     }
-    (edges, texts)
+    edges
 }
 
-/// The source roots: the core crate's and the application's (whose modules name the core's
-/// through its re-exports, as `crate::scene`).
-fn roots() -> [PathBuf; 2] {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    [root.join("crates/peridyn-core/src"), root.join("src")]
+/// The circles of a graph: its strongly connected parts of more than one node (Tarjan), each
+/// with one closed path through all of its nodes' first member for the message.
+fn circles(edges: &Edges) -> Vec<BTreeSet<String>> {
+    struct Search<'a> {
+        edges: &'a Edges,
+        index: BTreeMap<&'a str, usize>,
+        low: BTreeMap<&'a str, usize>,
+        stack: Vec<&'a str>,
+        found: Vec<BTreeSet<String>>,
+    }
+    impl<'a> Search<'a> {
+        fn visit(&mut self, at: &'a str) {
+            let i = self.index.len();
+            self.index.insert(at, i);
+            self.low.insert(at, i);
+            self.stack.push(at);
+            for next in self.edges.get(at).into_iter().flatten() {
+                let next = next.as_str();
+                if !self.index.contains_key(next) {
+                    self.visit(next);
+                    let low = self.low[at].min(self.low[next]);
+                    self.low.insert(at, low);
+                } else if self.stack.contains(&next) {
+                    let low = self.low[at].min(self.index[next]);
+                    self.low.insert(at, low);
+                }
+            }
+            if self.low[at] == self.index[at] {
+                let k = self.stack.iter().position(|&n| n == at).unwrap();
+                let part: BTreeSet<String> = self.stack.drain(k..).map(str::to_string).collect();
+                if part.len() > 1 {
+                    self.found.push(part);
+                }
+            }
+        }
+    }
+    let mut search = Search {
+        edges,
+        index: BTreeMap::new(),
+        low: BTreeMap::new(),
+        stack: Vec::new(),
+        found: Vec::new(),
+    };
+    for node in edges.keys() {
+        if !search.index.contains_key(node.as_str()) {
+            search.visit(node);
+        }
+    }
+    search.found
 }
 
-/// A circle through `start`, if there is one (depth-first search).
-fn circle(edges: &Edges, start: &str) -> Option<Vec<String>> {
-    fn visit(
-        edges: &Edges,
-        start: &str,
-        at: &str,
-        path: &mut Vec<String>,
-        seen: &mut BTreeSet<String>,
-    ) -> bool {
+/// A closed path from `start` back to it (breadth-first: the shortest), for messages.
+fn cycle(edges: &Edges, start: &str) -> Vec<String> {
+    let mut came_from: BTreeMap<&str, &str> = BTreeMap::new();
+    let mut queue = std::collections::VecDeque::from([start]);
+    while let Some(at) = queue.pop_front() {
         for next in edges.get(at).into_iter().flatten() {
             if next == start {
-                path.push(next.clone());
-                return true;
-            }
-            if seen.insert(next.clone()) {
-                path.push(next.clone());
-                if visit(edges, start, next, path, seen) {
-                    return true;
+                let mut back = Vec::new();
+                let mut node = at;
+                while node != start {
+                    back.push(node.to_string());
+                    node = came_from[node];
                 }
-                path.pop();
+                back.reverse();
+                let mut path = vec![start.to_string()];
+                path.extend(back);
+                path.push(start.to_string());
+                return path;
+            }
+            if !came_from.contains_key(next.as_str()) && next != start {
+                came_from.insert(next, at);
+                queue.push_back(next);
             }
         }
-        false
     }
-    let mut path = vec![start.to_string()];
-    visit(edges, start, start, &mut path, &mut BTreeSet::new()).then_some(path)
+    Vec::new()
+}
+
+/// The circles of `edges` not allowed by `allowed` (its files, and a closed path through the
+/// first), and the allowed ones that are gone.
+fn judge(edges: &Edges, allowed: &[(&[&str], &str)]) -> (Vec<String>, Vec<String>) {
+    let found = circles(edges);
+    let same = |files: &[&str], c: &BTreeSet<String>| {
+        files.iter().copied().collect::<BTreeSet<&str>>() == c.iter().map(String::as_str).collect()
+    };
+    let new = found
+        .iter()
+        .filter(|c| !allowed.iter().any(|(files, _)| same(files, c)))
+        .map(|c| {
+            let members: Vec<&str> = c.iter().map(String::as_str).collect();
+            let path = cycle(edges, members[0]).join(" → ");
+            format!("{} (e.g. {path})", members.join(", "))
+        })
+        .collect();
+    let gone = allowed
+        .iter()
+        .filter(|(files, _)| !found.iter().any(|c| same(files, c)))
+        .map(|(files, _)| files.join(", "))
+        .collect();
+    (new, gone)
 }
 
 #[test]
-fn the_modules_import_each_other_in_one_direction() {
-    let (edges, _) = graph();
-    assert!(edges.len() > 10, "read the modules: {edges:?}");
-    assert!(edges["sim"].contains("solver"), "the reader sees imports");
-    let circles: Vec<String> = edges
-        .keys()
-        .filter_map(|m| circle(&edges, m))
-        .map(|c| c.join(" → "))
-        .collect();
+fn no_two_files_import_each_other() {
+    let tree = tree();
+    let edges = file_edges(&tree);
+    assert!(edges.len() > 100, "read the files: {}", edges.len());
+    let sim = "crates/peridyn-core/src/sim/mod.rs";
     assert!(
-        circles.is_empty(),
-        "import circles:\n{}",
-        circles.join("\n")
+        edges[sim].contains("crates/peridyn-core/src/solver/mod.rs"),
+        "the reader sees imports: {:?}",
+        edges[sim]
+    );
+    let (new, gone) = judge(&edges, ALLOWED_CIRCLES);
+    assert!(
+        new.is_empty(),
+        "file-level import circles:\n{}",
+        new.join("\n")
+    );
+    assert!(
+        gone.is_empty(),
+        "no longer circles: remove them from ALLOWED_CIRCLES:\n{}",
+        gone.join("\n")
     );
 }
 
 #[test]
+fn the_modules_import_each_other_in_one_direction() {
+    let edges = module_edges(&tree());
+    assert!(edges.len() > 10, "read the modules: {edges:?}");
+    assert!(edges["sim"].contains("solver"), "the reader sees imports");
+    assert!(edges["control"].contains("scene"), "and the application's");
+    let (new, _) = judge(&edges, &[]);
+    assert!(new.is_empty(), "module import circles:\n{}", new.join("\n"));
+}
+
+/// The types `code` implements `Stepper` for.
+fn steppers(code: &str) -> BTreeSet<String> {
+    words(code)
+        .windows(3)
+        .filter(|w| w[0] == "Stepper" && w[1] == "for")
+        .map(|w| w[2].to_string())
+        .collect()
+}
+
+#[test]
 fn only_the_builder_names_a_concrete_simulation() {
-    let (_, texts) = graph();
-    let sim_dir = roots()[0].join("sim");
+    let tree = tree();
+    let sim_dir = root().join("crates/peridyn-core/src/sim");
+    let in_sim = |file: &PathBuf| file.starts_with(&sim_dir);
+    let concrete: BTreeSet<String> = tree
+        .files
+        .iter()
+        .filter(|(file, _)| in_sim(file))
+        .flat_map(|(_, f)| steppers(&f.code))
+        .collect();
+    assert!(!concrete.is_empty(), "no `impl Stepper for` found in sim/");
     let mut found = Vec::new();
-    for (file, text) in &texts {
-        if file.starts_with(&sim_dir) {
-            continue;
-        }
-        for name in CONCRETE {
-            if text.contains(name) {
-                found.push(format!("{}: {name}", file.display()));
-            }
+    for (file, f) in tree.files.iter().filter(|(file, _)| !in_sim(file)) {
+        let named: BTreeSet<&str> = words(&f.code)
+            .into_iter()
+            .filter(|w| concrete.contains(*w))
+            .collect();
+        for name in named {
+            found.push(format!("{}: {name}", shown(file)));
         }
     }
     assert!(found.is_empty(), "{}", found.join("\n"));
 }
 
 #[test]
-fn the_reader_finds_grouped_and_nested_imports() {
-    let code = "use crate::{a::{b, c}, d, self};\nfn f() { crate::e::g(); }\nuse super::h;";
-    let found: Vec<String> = imports(code, true).into_iter().collect();
-    assert_eq!(found, ["a", "d", "e", "h"]);
-    assert!(imports("use super::h;", false).is_empty());
-    let mut edges = BTreeMap::new();
-    edges.insert("x".to_string(), BTreeSet::from(["y".to_string()]));
-    edges.insert("y".to_string(), BTreeSet::from(["x".to_string()]));
-    assert_eq!(circle(&edges, "x").unwrap(), ["x", "y", "x"]);
+fn the_concrete_types_are_read_from_the_stepper_impls() {
+    let code = "impl<const D: usize> Stepper for A<D> {}\nimpl solver::Stepper for B {}\n\
+                impl Other for C {}\nfn f(s: &dyn Stepper) {}";
+    assert_eq!(steppers(code), BTreeSet::from(["A".into(), "B".into()]));
+}
+
+#[test]
+fn circles_are_found_named_and_allowed_only_while_they_exist() {
+    let edges: Edges = [("a", "b"), ("b", "c"), ("c", "a"), ("c", "d"), ("d", "e")]
+        .iter()
+        .fold(Edges::new(), |mut e, (from, to)| {
+            e.entry(from.to_string())
+                .or_default()
+                .insert(to.to_string());
+            e
+        });
+    let found = circles(&edges);
+    assert_eq!(found.len(), 1);
+    assert_eq!(
+        found[0],
+        BTreeSet::from(["a".into(), "b".into(), "c".into()])
+    );
+    assert_eq!(cycle(&edges, "b"), ["b", "c", "a", "b"]);
+    let (new, gone) = judge(&edges, &[]);
+    assert_eq!(new, ["a, b, c (e.g. a → b → c → a)"]);
+    assert!(gone.is_empty());
+    let allowed: &[(&[&str], &str)] = &[(&["c", "b", "a"], "known"), (&["d", "e"], "fixed")];
+    let (new, gone) = judge(&edges, allowed);
+    assert!(new.is_empty());
+    assert_eq!(gone, ["d, e"]);
 }

@@ -1,58 +1,13 @@
-//! `[absorbing]`, the scalar wave's material and the initial pulses → their scene specs, with
-//! the defaults of thesis §4.1.3, §4.2.3 per physics (seed-thesis-ch4-5 §1.3).
+//! `[absorbing]` and the initial pulses → their scene specs, with the defaults of thesis
+//! §4.1.3, §4.2.3 per physics (seed-thesis-ch4-5 §1.3).
 
+use super::checks::{in_range, length, point, positive};
 use super::error::{ErrorContext, SceneError};
-use super::schema::{AbsorbingTable, Physics, Preset, PulseDirectionTable};
-use super::validate::{length, point, positive};
-use super::*;
-use crate::model::diffusion::second_moment;
-
-/// The scalar wave: χ, d, and its kernel c_s ω / r^p as a [`DiffusionSpec`] (the operator is the
-/// diffusion one with κ = c_s).
-pub(super) fn wave(
-    p: &Preset,
-    ctx: &ErrorContext,
-    dim: usize,
-    horizon: f64,
-) -> Result<(WaveSpec, DiffusionSpec), SceneError> {
-    let m = &p.material;
-    let speed = match m.wave_speed {
-        Some(v) => positive(ctx, "material.wave_speed", v.si())?,
-        None => {
-            return Err(ctx.error(
-                "material.wave_speed",
-                "a scalar wave needs χ (`wave_speed`, m/s)",
-            ));
-        }
-    };
-    let damping = m.damping.map_or(0.0, |d| d.si());
-    if !(damping >= 0.0 && damping.is_finite()) {
-        return Err(ctx.error(
-            "material.damping",
-            format!("d must be a finite number ≥ 0 (1/s), got {damping}"),
-        ));
-    }
-    let exponent = m.kernel_exponent.unwrap_or(2.0);
-    if !(0.0..dim as f64 + 1.0).contains(&exponent) {
-        return Err(ctx.error(
-            "material.kernel_exponent",
-            format!(
-                "p must be in [0, {}) so the {dim}D kernel's second moment is finite, got {exponent}",
-                dim + 1
-            ),
-        ));
-    }
-    let moment = second_moment(dim, exponent, m.influence, horizon);
-    Ok((
-        WaveSpec { speed, damping },
-        DiffusionSpec {
-            diffusivity: speed * speed / moment,
-            exponent,
-            influence: m.influence,
-            corrosion: None,
-        },
-    ))
-}
+use super::geometry::Solid;
+use super::schema::{
+    AbsorbingMethod, AbsorbingTable, Dispersion, Physics, Preset, PulseDirectionTable,
+};
+use super::spec::{AbsorbingSpec, Pulse, PulseDirection};
 
 /// `[[initial.pulse]]`: Gaussians of a scalar field, or of the displacement (dynamics, with a
 /// `direction`).
@@ -138,20 +93,6 @@ pub(super) fn pulses(
         .collect()
 }
 
-fn in_range(
-    ctx: &ErrorContext,
-    field: &str,
-    v: f64,
-    ok: bool,
-    range: &str,
-) -> Result<f64, SceneError> {
-    if ok && v.is_finite() {
-        Ok(v)
-    } else {
-        Err(ctx.error(field, format!("must be in {range}, got {v}")))
-    }
-}
-
 /// `[absorbing]` with the defaults of its physics: diffusion fits real local modes on one
 /// level with a cloud of radius δ/2 all around the node; waves fit outgoing modes of the
 /// discrete dispersion relation on two levels, with a cloud of radius δ behind the node.
@@ -163,44 +104,7 @@ pub(super) fn absorbing(
     horizon: f64,
 ) -> Result<AbsorbingSpec, SceneError> {
     let (dim, physics, solid) = scene;
-    let (wave, bond) = match physics {
-        Physics::ScalarWave => (true, false),
-        Physics::Dynamics if dim == 2 => (true, true),
-        Physics::Diffusion | Physics::Corrosion | Physics::NernstPlanck => (false, false),
-        Physics::Dynamics => {
-            return Err(ctx.error(
-                "absorbing",
-                format!("bond-based absorbing layers are implemented in 2D; this scene is {dim}D"),
-            ));
-        }
-        Physics::Static => {
-            return Err(ctx.error(
-                "absorbing",
-                "absorbing layers are available for physics = \"diffusion\", \"corrosion\", \
-                 \"scalar-wave\" and \"dynamics\" (2D)",
-            ));
-        }
-    };
-    let method = table.method.unwrap_or_default();
-    if method == AbsorbingMethod::FirstOrder && !wave {
-        return Err(ctx.error(
-            "absorbing.method",
-            "the first-order boundary (4.75) is a wave condition: physics = \"scalar-wave\" or \
-             \"dynamics\"",
-        ));
-    }
-    if dim > 2 {
-        return Err(ctx.error(
-            "absorbing",
-            format!("absorbing layers are implemented in 1D and 2D; this scene is {dim}D"),
-        ));
-    }
-    if !matches!(solid, Solid::Box { .. } | Solid::Sphere { .. }) {
-        return Err(ctx.error(
-            "geometry",
-            "an absorbing layer needs the truncation to be one box or one sphere (disc)",
-        ));
-    }
+    let (method, wave, bond) = layer_kind(table, ctx, dim, physics, solid)?;
     let width = match table.width {
         Some(m) => positive(
             ctx,
@@ -282,6 +186,102 @@ pub(super) fn absorbing(
         "[0, 90) degrees",
     )?
     .to_radians();
+    let knobs = knobs(table, ctx, bond, spacing, horizon)?;
+    Ok(AbsorbingSpec {
+        method,
+        damping: knobs.damping,
+        damping_band: knobs.damping_band,
+        width,
+        cloud_radius,
+        wave_numbers,
+        directions,
+        max_wave_number,
+        spread,
+        wave_number_set: table.wave_number_set,
+        dispersion: table.dispersion.unwrap_or(if wave {
+            Dispersion::Discrete
+        } else {
+            Dispersion::Local
+        }),
+        cutoff: knobs.cutoff,
+        tikhonov: knobs.tikhonov,
+        cone: table.cone.unwrap_or(wave),
+        max_norm: knobs.max_norm,
+        max_condition: knobs.max_condition,
+        thinning: table.thinning,
+        filter: knobs.filter,
+        rest_modes: table.rest_modes,
+    })
+}
+
+/// Which layer the physics takes, `(method, wave, bond)`: waves fit outgoing modes (bond-based
+/// PD in 2D), diffusion real local modes; the truncation is one box or one sphere.
+fn layer_kind(
+    table: &AbsorbingTable,
+    ctx: &ErrorContext,
+    dim: usize,
+    physics: Physics,
+    solid: &Solid,
+) -> Result<(AbsorbingMethod, bool, bool), SceneError> {
+    let (wave, bond) = match physics {
+        Physics::ScalarWave => (true, false),
+        Physics::Dynamics if dim == 2 => (true, true),
+        Physics::Diffusion | Physics::Corrosion | Physics::NernstPlanck => (false, false),
+        Physics::Dynamics => {
+            return Err(ctx.error(
+                "absorbing",
+                format!("bond-based absorbing layers are implemented in 2D; this scene is {dim}D"),
+            ));
+        }
+        Physics::Static => {
+            return Err(ctx.error(
+                "absorbing",
+                "absorbing layers are available for physics = \"diffusion\", \"corrosion\", \
+                 \"scalar-wave\" and \"dynamics\" (2D)",
+            ));
+        }
+    };
+    let method = table.method.unwrap_or_default();
+    if method == AbsorbingMethod::FirstOrder && !wave {
+        return Err(ctx.error(
+            "absorbing.method",
+            "the first-order boundary (4.75) is a wave condition: physics = \"scalar-wave\" or \
+             \"dynamics\"",
+        ));
+    }
+    if dim > 2 {
+        return Err(ctx.error(
+            "absorbing",
+            format!("absorbing layers are implemented in 1D and 2D; this scene is {dim}D"),
+        ));
+    }
+    if !matches!(solid, Solid::Box { .. } | Solid::Sphere { .. }) {
+        return Err(ctx.error(
+            "geometry",
+            "an absorbing layer needs the truncation to be one box or one sphere (disc)",
+        ));
+    }
+    Ok((method, wave, bond))
+}
+
+/// The pseudo-inverse's and the layer's damping knobs.
+struct Knobs {
+    cutoff: f64,
+    tikhonov: f64,
+    max_norm: f64,
+    max_condition: f64,
+    filter: f64,
+    damping: f64,
+    damping_band: f64,
+}
+
+fn knobs(
+    table: &AbsorbingTable,
+    ctx: &ErrorContext,
+    bond: bool,
+    spacing: f64,
+    horizon: f64,
+) -> Result<Knobs, SceneError> {
     let cutoff = table.cutoff.unwrap_or(1e-10);
     let cutoff = in_range(
         ctx,
@@ -338,63 +338,13 @@ pub(super) fn absorbing(
         )?,
         None => horizon,
     };
-    Ok(AbsorbingSpec {
-        method,
-        damping,
-        damping_band,
-        width,
-        cloud_radius,
-        wave_numbers,
-        directions,
-        max_wave_number,
-        spread,
-        wave_number_set: table.wave_number_set,
-        dispersion: table.dispersion.unwrap_or(if wave {
-            Dispersion::Discrete
-        } else {
-            Dispersion::Local
-        }),
+    Ok(Knobs {
         cutoff,
         tikhonov,
-        cone: table.cone.unwrap_or(wave),
         max_norm,
         max_condition,
-        thinning: table.thinning,
         filter,
-        rest_modes: table.rest_modes,
+        damping,
+        damping_band,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Table 4.1 of the thesis (κ0, κ1 per D) and the wave constants (4.47), (4.51), (4.87).
-    #[test]
-    fn second_moments_give_the_papers_constants() {
-        use std::f64::consts::PI;
-        let d: f64 = 0.7;
-        let cases = [
-            (1, 0.0, Influence::Constant, 3.0 / d.powi(3)),
-            (1, 1.0, Influence::Constant, 2.0 / d.powi(2)),
-            (1, 0.0, Influence::Linear, 12.0 / d.powi(3)),
-            (1, 1.0, Influence::Linear, 6.0 / d.powi(2)),
-            (2, 0.0, Influence::Constant, 8.0 / (PI * d.powi(4))),
-            (2, 1.0, Influence::Constant, 6.0 / (PI * d.powi(3))),
-            (3, 1.0, Influence::Constant, 6.0 / (PI * d.powi(4))),
-            (3, 1.0, Influence::Linear, 30.0 / (PI * d.powi(4))),
-            (2, 1.0, Influence::Linear, 24.0 / (PI * d.powi(3))),
-            (2, 2.0, Influence::Constant, 4.0 / (PI * d * d)),
-            (2, 2.0, Influence::Linear, 12.0 / (PI * d * d)),
-            (3, 2.0, Influence::Constant, 9.0 / (2.0 * PI * d.powi(3))),
-            (3, 2.0, Influence::Linear, 18.0 / (PI * d.powi(3))),
-        ];
-        for (dim, p, w, kappa) in cases {
-            let got = 1.0 / second_moment(dim, p, w, d);
-            assert!(
-                (got / kappa - 1.0).abs() < 1e-12,
-                "{dim}D p = {p} {w:?}: {got} vs {kappa}"
-            );
-        }
-    }
 }

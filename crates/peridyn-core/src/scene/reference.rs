@@ -3,8 +3,8 @@
 
 use std::f64::consts::PI;
 
-use super::schema::{ReferenceOperator, ReferenceSpec};
-use super::{DiffusionSpec, MaterialSpec, Physics};
+use super::schema::{Physics, ReferenceOperator, ReferenceSpec};
+use super::spec::{DiffusionSpec, MaterialSpec};
 use crate::model::diffusion::DiffusionKernel;
 use crate::model::pmb::Influence;
 

@@ -2,11 +2,10 @@
 //! → the scene's [`StateBasedSpec`] (zeng2024; defaults are the paper's: φ_c = 0.4, α = 0.5,
 //! one refinement level).
 
+use super::checks::{check_split_damage, check_split_strain, each, point, positive};
 use super::error::{ErrorContext, SceneError};
 use super::geometry::Solid;
-use super::schema::BondWeights;
-use super::schema::{IntegratorKind, ModelKind, Physics, Preset};
-use super::validate::{point, positive};
+use super::schema::{BondWeights, IntegratorKind, ModelKind, Physics, Preset};
 use crate::model::osb::OsbMaterial;
 
 /// ADR's residual tolerance where a preset gives none.
@@ -45,24 +44,6 @@ pub struct OpeningSpec {
     pub name: String,
     pub mouth: Vec<f64>,
     pub axis: usize,
-}
-
-/// φ_c of (15), wherever it is set: it must lie in [0, 1).
-pub fn check_split_damage(phi: f64) -> Result<f64, String> {
-    if (0.0..1.0).contains(&phi) {
-        Ok(phi)
-    } else {
-        Err(format!("φ_c must lie in [0, 1), got {phi}"))
-    }
-}
-
-/// α of (16), wherever it is set: it must lie in (0, 1).
-pub fn check_split_strain(alpha: f64) -> Result<f64, String> {
-    if alpha > 0.0 && alpha < 1.0 {
-        Ok(alpha)
-    } else {
-        Err(format!("α must lie in (0, 1), got {alpha}"))
-    }
 }
 
 fn refuse(ctx: &ErrorContext, field: &str, what: &str) -> SceneError {
@@ -147,7 +128,41 @@ pub(super) fn state_based(
         Some(g) => Some(positive(ctx, "material.fracture_energy", g.si())?),
         None => None,
     };
-    let refinement = match &p.refinement {
+    let refinement = split_rule(p, ctx)?;
+    let relaxation = relaxation(p, ctx, adr)?;
+    let openings = each(ctx, "metrics.opening", &p.metrics.opening, |o, path| {
+        if o.axis >= dim {
+            return Err(format!("{path}.axis: must be 0 or 1, got {}", o.axis));
+        }
+        Ok(OpeningSpec {
+            name: o.name.clone(),
+            mouth: point(&o.mouth, dim, &format!("{path}.mouth"))?,
+            axis: o.axis,
+        })
+    })?;
+    Ok(Some(StateBasedSpec {
+        material: OsbMaterial {
+            youngs_modulus,
+            poisson_ratio,
+            plane: m.plane,
+            thickness,
+            fracture_energy,
+        },
+        weights: p.discretization.bond_weights.unwrap_or_default(),
+        refinement: refinement.as_ref().map(|r| r.0),
+        refined_region: refinement.and_then(|r| r.1),
+        relaxation,
+        openings,
+    }))
+}
+
+/// `[refinement]`: when a particle splits (φ_c, α), how deep, and the region split before the
+/// run; `None` where splitting is off.
+fn split_rule(
+    p: &Preset,
+    ctx: &ErrorContext,
+) -> Result<Option<(SplitRule, Option<Solid>)>, SceneError> {
+    Ok(match &p.refinement {
         Some(r) if r.enabled => {
             let damage = check_split_damage(r.damage.unwrap_or(0.4))
                 .map_err(|m| ctx.error("refinement.damage", m))?;
@@ -184,8 +199,12 @@ pub(super) fn state_based(
             ))
         }
         _ => None,
-    };
-    let relaxation = match (adr, p.time.as_ref().and_then(|t| t.tolerance)) {
+    })
+}
+
+/// ADR's tolerance (`None`: velocity-Verlet); `time.tolerance` belongs to ADR only.
+fn relaxation(p: &Preset, ctx: &ErrorContext, adr: bool) -> Result<Option<f64>, SceneError> {
+    Ok(match (adr, p.time.as_ref().and_then(|t| t.tolerance)) {
         (true, Some(t)) if t > 0.0 && t < 1.0 => Some(t),
         (true, Some(t)) => {
             return Err(ctx.error(
@@ -201,37 +220,5 @@ pub(super) fn state_based(
             ));
         }
         (false, None) => None,
-    };
-    let openings = p
-        .metrics
-        .opening
-        .iter()
-        .enumerate()
-        .map(|(i, o)| {
-            let path = format!("metrics.opening[{i}]");
-            if o.axis >= dim {
-                return Err(format!("{path}.axis: must be 0 or 1, got {}", o.axis));
-            }
-            Ok(OpeningSpec {
-                name: o.name.clone(),
-                mouth: point(&o.mouth, dim, &format!("{path}.mouth"))?,
-                axis: o.axis,
-            })
-        })
-        .collect::<Result<Vec<_>, String>>()
-        .map_err(|m| ctx.from_path_message(&m))?;
-    Ok(Some(StateBasedSpec {
-        material: OsbMaterial {
-            youngs_modulus,
-            poisson_ratio,
-            plane: m.plane,
-            thickness,
-            fracture_energy,
-        },
-        weights: p.discretization.bond_weights.unwrap_or_default(),
-        refinement: refinement.as_ref().map(|r| r.0),
-        refined_region: refinement.and_then(|r| r.1),
-        relaxation,
-        openings,
-    }))
+    })
 }

@@ -5,6 +5,7 @@
 
 pub mod adaptation;
 pub mod clock;
+pub mod dt;
 pub mod error;
 pub mod setup;
 pub mod stages;
@@ -12,8 +13,8 @@ pub mod state;
 
 pub use adaptation::{Adaptation, Tick};
 pub use clock::Clock;
+pub use dt::{Asker, Integrator, StableStep, dt_policy};
 pub use error::SimError;
-pub use setup::{Integrator, StableStep};
 pub use stages::{Lap, Stages, StepWall};
 pub use state::State;
 
@@ -32,6 +33,8 @@ pub struct SimInfo {
     /// A guaranteed, conservative bound: (3.8) for velocity-Verlet, Gershgorin discs for
     /// forward Euler.
     pub gershgorin_dt: f64,
+    /// The integrator whose limit these are.
+    pub integrator: Integrator,
     pub total_steps: u64,
     pub frame_every: u64,
     /// Solver memory (bond and node arrays) per directed bond.
@@ -39,6 +42,17 @@ pub struct SimInfo {
     /// Mean nodes per updated node's stencil, the node itself included: the family (standard
     /// scheme, the papers' counts: 2m+1 in 1D, 441 for m = 12 in 2D) or the collocation set.
     pub stencil: f64,
+}
+
+impl SimInfo {
+    /// The stable step the run's Δt is checked against (live `set dt` included).
+    pub fn stable_step(&self) -> StableStep {
+        StableStep {
+            sharp: self.stable_dt,
+            guaranteed: self.gershgorin_dt,
+            integrator: self.integrator,
+        }
+    }
 }
 
 /// The size of a built simulation, for its [`SimInfo`].
@@ -109,6 +123,7 @@ impl RunState {
             dt: self.clock.dt(),
             stable_dt: self.stable.sharp,
             gershgorin_dt: self.stable.guaranteed,
+            integrator: self.stable.integrator,
             total_steps: self.clock.total_steps(),
             frame_every: self.frame_every,
             bytes_per_bond: size.bytes_per_bond,

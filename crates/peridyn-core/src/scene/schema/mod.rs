@@ -5,8 +5,19 @@ use std::collections::BTreeMap;
 
 use serde::Deserialize;
 
+mod absorbing;
+mod nernst_planck;
+
+pub use absorbing::{
+    AbsorbingMethod, AbsorbingTable, Dispersion, PulseDirectionTable, PulseTable, WaveNumberSet,
+};
+pub use nernst_planck::{
+    ButlerVolmerTable, ManufacturedTable, NernstPlanckTable, ReactionsTable, SpeciesTable,
+};
+
+use super::checks::DEFAULT_CHI;
 use super::geometry::{Point, Shape};
-use super::units::{Measure, Quantity};
+use super::units::{Measure, Quantity, Relative};
 use crate::model::pmb::{Influence, Plane};
 
 #[derive(Debug, Clone, Deserialize)]
@@ -49,7 +60,7 @@ pub struct Preset {
     /// `hold_reference` layers, and the error norm (3.79) reported in frames.
     pub reference: Option<ReferenceSpec>,
     /// NNPP scenes: the species, the Poisson equation and the kernels.
-    pub nernst_planck: Option<super::nernst_planck::NernstPlanckTable>,
+    pub nernst_planck: Option<NernstPlanckTable>,
     /// Named overrides merged onto this file, e.g. `[variants.small]`.
     #[serde(default)]
     pub variants: BTreeMap<String, toml::Table>,
@@ -113,7 +124,7 @@ pub struct MultigridTable {
     /// Dynamics: "idw" (default, the thesis's (3.85)–(3.88)) or "multilinear" for the values
     /// fine nodes take from the coarse level.
     #[serde(default)]
-    pub transfer: Option<super::Transfer>,
+    pub transfer: Option<Transfer>,
     /// Dynamics: the coarse level's scheme, "standard" (default, "adaptive, standard") or
     /// "wls" (WLS-2 collocation, the thesis's "adaptive, hybrid").
     #[serde(default)]
@@ -123,7 +134,8 @@ pub struct MultigridTable {
     #[serde(default)]
     pub collocation_factor: Option<usize>,
     /// With `coarse = "wls"`, 2D only, instead of the auxiliary grid: the collocation targets
-    /// as whole orbits [a, b] of coarse-lattice offsets (±a, ±b), (±b, ±a) (issue 14's stencils).
+    /// as whole orbits [a, b] of coarse-lattice offsets (±a, ±b), (±b, ±a)
+    /// (docs/validation.md's stencils).
     #[serde(default)]
     pub collocation_orbits: Option<Vec<Vec<u32>>>,
     /// With `coarse = "wls"`: exponent a of the fit weight exp(−a d²/r̄²) (the papers' 16).
@@ -132,7 +144,7 @@ pub struct MultigridTable {
     /// Nernst-planck: "interpolated" (default, the thesis's (3.89)–(3.90)) or "conservative"
     /// (the levels' exchange balanced, the coarse level taking the fine level's view of it).
     #[serde(default)]
-    pub coupling: Option<super::Coupling>,
+    pub coupling: Option<Coupling>,
 }
 
 /// The `multigrid.coarse` scheme names.
@@ -141,6 +153,34 @@ pub struct MultigridTable {
 pub enum CoarseKind {
     Standard,
     Wls,
+}
+
+/// How fine nodes take their values from the coarse level in the multi-adaptive scheme.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Transfer {
+    /// Inverse-distance weights of the 2ᵈ nearest coarse nodes, (3.85)–(3.88) (the thesis).
+    #[default]
+    Idw,
+    /// Tensor-product linear weights of the 2ᵈ coarse nodes around the fine node (linear
+    /// fields reproduced exactly; extrapolated at the body's edge).
+    Multilinear,
+}
+
+/// The accounting of the fluxes between the two levels of a predefined-region multi-grid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Coupling {
+    /// The thesis's (3.89)–(3.90): each level's active nodes see the other level through
+    /// their fictitious nodes; consistent on both sides, not conservative (IDW is not).
+    #[default]
+    Interpolated,
+    /// Conservative: the same fictitious values and bonds, and the levels' exchange D (the
+    /// interpolated coupling's conservation defect) taken back from the coarse nodes that
+    /// exchange, inside the implicit systems (`discretization::CrossBonds`): the coarse level
+    /// takes the fine level's view of the exchange. Σ C V over the active nodes is conserved up
+    /// to the solves' residuals, at some accuracy next to the level interface.
+    Conservative,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -162,7 +202,7 @@ pub struct HybridTable {
     /// WLS auxiliary-grid factor k_aux in Ω_w (default: 29 collocation nodes in 2D, 123 in 3D).
     pub collocation_factor: Option<usize>,
     /// 2D only, instead of the auxiliary grid: the Ω_w collocation targets as whole orbits
-    /// [a, b] of lattice offsets (±a, ±b), (±b, ±a) in lattice spacings (issue 14).
+    /// [a, b] of lattice offsets (±a, ±b), (±b, ±a) in lattice spacings.
     pub collocation_orbits: Option<Vec<Vec<u32>>>,
     /// Exponent a of the Ω_w fit weight exp(−a d²/r̄²) (the papers' (3.26): 16).
     pub fit_weight: Option<f64>,
@@ -191,15 +231,15 @@ impl Default for HybridTable {
 }
 
 fn default_interface_band() -> Measure {
-    Measure::Relative(0.5, super::units::Relative::Horizon)
+    Measure::Relative(0.5, Relative::Horizon)
 }
 
 fn default_band() -> Measure {
-    Measure::Relative(1.2, super::units::Relative::Horizon)
+    Measure::Relative(1.2, Relative::Horizon)
 }
 
 fn default_chi() -> f64 {
-    super::DEFAULT_CHI
+    DEFAULT_CHI
 }
 
 fn default_every() -> u64 {
@@ -496,70 +536,6 @@ pub struct Initial {
     /// Scalar fields: Gaussian pulses A exp(−a ‖x − x0‖²), summed.
     #[serde(default)]
     pub pulse: Vec<PulseTable>,
-}
-
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PulseTable {
-    pub center: Point,
-    #[serde(default = "unit_quantity")]
-    pub amplitude: Quantity,
-    /// a (1/m²).
-    pub decay: Quantity,
-    /// Dynamics: the displacement's direction, `"radial"` (u = A e^{−a r²} e_r, thesis
-    /// (4.168)) or a vector (normalized); scalar fields take none.
-    pub direction: Option<PulseDirectionTable>,
-    /// The pulse is zero beyond this distance from its centre (m; (4.168)'s r ≤ 40).
-    pub radius: Option<Quantity>,
-}
-
-#[derive(Debug, Clone, Deserialize)]
-#[serde(untagged)]
-pub enum PulseDirectionTable {
-    Named(String),
-    Vector(Point),
-}
-
-fn unit_quantity() -> Quantity {
-    Quantity(1.0)
-}
-
-/// `[absorbing]`: the layer and the knobs of thesis §4.1.3, §4.2.3 (defaults per physics in
-/// `scene::absorbing`).
-#[derive(Debug, Clone, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct AbsorbingTable {
-    /// "modes" (the fitted far-field modes, default) or "first-order" (the conventional
-    /// boundary (4.75), the baseline).
-    pub method: Option<super::AbsorbingMethod>,
-    pub width: Option<Measure>,
-    pub cloud_radius: Option<Measure>,
-    pub wave_numbers: Option<usize>,
-    pub directions: Option<usize>,
-    /// Δk (1/m).
-    pub max_wave_number: Option<f64>,
-    /// Δφ (degrees).
-    pub spread_degrees: Option<f64>,
-    #[serde(default)]
-    pub wave_number_set: super::WaveNumberSet,
-    pub dispersion: Option<super::Dispersion>,
-    pub cutoff: Option<f64>,
-    /// λ of Tikhonov's filter factors, relative to σ_max, [0, 1) (0: none).
-    pub tikhonov: Option<f64>,
-    pub cone: Option<bool>,
-    pub max_norm: Option<f64>,
-    pub max_condition: Option<f64>,
-    #[serde(default)]
-    pub thinning: bool,
-    /// ε of the layer's selective filter, [0, 0.5] (0: none).
-    pub filter: Option<f64>,
-    /// κ of the damped band inside the layer, [0, 0.02] (0: none).
-    pub damping: Option<f64>,
-    /// The damped band's width (default one horizon).
-    pub damping_band: Option<Measure>,
-    /// Fit the far field's rest states (u = const, and e^{−2dt} for damped waves) too.
-    #[serde(default)]
-    pub rest_modes: bool,
 }
 
 #[derive(Debug, Clone, Deserialize)]
