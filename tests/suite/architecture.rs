@@ -41,15 +41,6 @@ const ALLOWED_CIRCLES: &[(&[&str], &str)] = &[
         "the hand-written kernels take the row types and tails from the file that dispatches \
          to them; to go with the restructuring of the schemes",
     ),
-    (
-        &[
-            "crates/peridyn-core/src/sim/dual_horizon.rs",
-            "crates/peridyn-core/src/sim/dynamics.rs",
-            "crates/peridyn-core/src/sim/mod.rs",
-        ],
-        "the builder's helpers (`add_initial_velocity`, …) are called by the simulations the \
-         builder builds; to go with the restructuring of sim/",
-    ),
 ];
 
 /// The repository's root.
@@ -318,4 +309,97 @@ fn circles_are_found_named_and_allowed_only_while_they_exist() {
     let (new, gone) = judge(&edges, allowed);
     assert!(new.is_empty());
     assert_eq!(gone, ["d, e"]);
+}
+
+/// A source file's length limit (one job per file), counted with its tests where they share
+/// the file.
+const MAX_FILE_LINES: usize = 900;
+/// A function's length limit outside tests.
+const MAX_FUNCTION_LINES: usize = 150;
+
+/// The functions of some code (comments and literals stripped, line breaks kept) longer than
+/// `limit` lines: (name, first line, lines).
+fn long_functions(code: &str, limit: usize) -> Vec<(String, usize, usize)> {
+    let bytes = code.as_bytes();
+    let mut found = Vec::new();
+    for (k, _) in code.match_indices("fn ") {
+        let before = code[..k].chars().last();
+        if before.is_some_and(|c| c.is_alphanumeric() || c == '_') {
+            continue;
+        }
+        let name: String = code[k + 3..]
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        // The body: from the first `{` before any `;` (a declaration without a body has none).
+        let Some(open) = code[k..].find(['{', ';']).map(|o| k + o) else {
+            continue;
+        };
+        if bytes[open] == b';' {
+            continue;
+        }
+        let mut depth = 0;
+        let mut close = code.len();
+        for (i, &b) in bytes.iter().enumerate().skip(open) {
+            match b {
+                b'{' => depth += 1,
+                b'}' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        close = i;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        let first = code[..k].matches('\n').count() + 1;
+        let lines = code[k..close].matches('\n').count() + 1;
+        if lines > limit {
+            found.push((name, first, lines));
+        }
+    }
+    found
+}
+
+#[test]
+fn no_file_is_over_900_lines_and_no_function_over_150() {
+    let mut too_long = Vec::new();
+    for dir in [root().join("crates/peridyn-core/src"), root().join("src")] {
+        let mut files = Vec::new();
+        rust_files(&dir, &mut files);
+        for file in files {
+            let text = std::fs::read_to_string(&file).unwrap();
+            let lines = text.lines().count();
+            if lines > MAX_FILE_LINES {
+                too_long.push(format!("{}: {lines} lines", shown(&file)));
+            }
+            // A file of tests (`mod tests;` beside the code) holds no function the rule counts.
+            if file.file_name().is_some_and(|n| n == "tests.rs") {
+                continue;
+            }
+            for (name, line, count) in long_functions(&reader::code(&text), MAX_FUNCTION_LINES) {
+                too_long.push(format!("{}:{line}: fn {name}, {count} lines", shown(&file)));
+            }
+        }
+    }
+    assert!(too_long.is_empty(), "too long:\n{}", too_long.join("\n"));
+}
+
+#[test]
+fn long_functions_are_measured_from_their_name_to_their_closing_brace() {
+    let code = "fn short() {\n}\nfn long() {\n    if x {\n    }\n\n}\nfn decl();\n";
+    assert_eq!(long_functions(code, 3), [("long".to_string(), 3, 5)]);
+    assert!(long_functions(code, 5).is_empty());
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            rust_files(&path, out);
+        } else if path.extension().is_some_and(|e| e == "rs") {
+            out.push(path);
+        }
+    }
 }

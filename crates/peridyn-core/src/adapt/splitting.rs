@@ -83,53 +83,8 @@ pub fn split(
     }
     let old_count = nodes.len();
     // The children's places, from the parents' state before anything moves.
-    let placements: Vec<Placement> = {
-        let body = Body {
-            reference: nodes.reference(),
-            volumes: nodes.volumes(),
-            constants: nodes.fields.get(columns.constants),
-            thickness: material.thickness,
-        };
-        let positions = nodes.fields.get(columns.position);
-        let spacing = nodes.fields.get(columns.spacing);
-        parents
-            .iter()
-            .map(|&p| {
-                let p = p as usize;
-                let strain = bonds.normal_strains(p, &body, positions);
-                let quarter = 0.25 * spacing[p];
-                let (x, y) = (body.reference[p], positions[p]);
-                let reference = SIGNS.map(|s| [x[0] + quarter * s[0], x[1] + quarter * s[1]]);
-                let current = SIGNS.map(|s| {
-                    [
-                        y[0] + quarter * (1.0 + strain[0]) * s[0],
-                        y[1] + quarter * (1.0 + strain[1]) * s[1],
-                    ]
-                });
-                (reference, current)
-            })
-            .collect()
-    };
-    // Old particles whose horizon may reach a child: a child lies √2 Δ_p/4 from its parent, so
-    // particle k can see one only if |x_k − x_p| < δ_k + √2 Δ_p/4 (the bucket cell, at least
-    // δ_max + Δ_p/2 wide, holds every candidate). The parents' own neighbors are among them.
-    let mut affected = vec![false; old_count];
-    {
-        let reference = nodes.reference();
-        let constants = nodes.fields.get(columns.constants);
-        let spacing = nodes.fields.get(columns.spacing);
-        for &p in parents {
-            let x = reference[p as usize];
-            let offset = std::f64::consts::SQRT_2 * 0.25 * spacing[p as usize];
-            buckets.within(reference, &x, buckets.cell(), |j| {
-                let (k, y) = (j as usize, reference[j as usize]);
-                let reach = constants[k].horizon + offset;
-                if (y[0] - x[0]).powi(2) + (y[1] - x[1]).powi(2) < reach * reach {
-                    affected[k] = true;
-                }
-            });
-        }
-    }
+    let placements = placements(parents, nodes, columns, bonds, material);
+    let mut affected = affected(parents, nodes, columns, buckets);
     // The old particles' places (a parent's index goes to its first child): pre-crack
     // crossings of the bonds the new ones replace. Only kept when there is a pre-crack.
     let reference_of: Vec<[f64; 2]> = if precracks.is_empty() {
@@ -229,4 +184,69 @@ pub fn split(
     };
     bonds.replace_rows(&body, &rows);
     report
+}
+
+/// Each parent's four children: reference positions (19) and current positions (18) with the
+/// parent's normal stretches.
+fn placements(
+    parents: &[u32],
+    nodes: &Nodes<2>,
+    columns: &SplitColumns,
+    bonds: &DualBonds,
+    material: &OsbMaterial,
+) -> Vec<Placement> {
+    let body = Body {
+        reference: nodes.reference(),
+        volumes: nodes.volumes(),
+        constants: nodes.fields.get(columns.constants),
+        thickness: material.thickness,
+    };
+    let positions = nodes.fields.get(columns.position);
+    let spacing = nodes.fields.get(columns.spacing);
+    parents
+        .iter()
+        .map(|&p| {
+            let p = p as usize;
+            let strain = bonds.normal_strains(p, &body, positions);
+            let quarter = 0.25 * spacing[p];
+            let (x, y) = (body.reference[p], positions[p]);
+            let reference = SIGNS.map(|s| [x[0] + quarter * s[0], x[1] + quarter * s[1]]);
+            let current = SIGNS.map(|s| {
+                [
+                    y[0] + quarter * (1.0 + strain[0]) * s[0],
+                    y[1] + quarter * (1.0 + strain[1]) * s[1],
+                ]
+            });
+            (reference, current)
+        })
+        .collect()
+}
+
+/// The old particles whose rows must be searched again because their horizon may reach one of
+/// `parents`' children.
+fn affected(
+    parents: &[u32],
+    nodes: &Nodes<2>,
+    columns: &SplitColumns,
+    buckets: &Buckets,
+) -> Vec<bool> {
+    // Old particles whose horizon may reach a child: a child lies √2 Δ_p/4 from its parent, so
+    // particle k can see one only if |x_k − x_p| < δ_k + √2 Δ_p/4 (the bucket cell, at least
+    // δ_max + Δ_p/2 wide, holds every candidate). The parents' own neighbors are among them.
+    let mut affected = vec![false; nodes.len()];
+    let reference = nodes.reference();
+    let constants = nodes.fields.get(columns.constants);
+    let spacing = nodes.fields.get(columns.spacing);
+    for &p in parents {
+        let x = reference[p as usize];
+        let offset = std::f64::consts::SQRT_2 * 0.25 * spacing[p as usize];
+        buckets.within(reference, &x, buckets.cell(), |j| {
+            let (k, y) = (j as usize, reference[j as usize]);
+            let reach = constants[k].horizon + offset;
+            if (y[0] - x[0]).powi(2) + (y[1] - x[1]).powi(2) < reach * reach {
+                affected[k] = true;
+            }
+        });
+    }
+    affected
 }

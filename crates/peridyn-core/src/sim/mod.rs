@@ -1,9 +1,10 @@
 //! The simulations of every physics and the one builder above them: a scene becomes a
 //! dimension-erased [`Stepper`]. Nothing outside this module names a concrete simulation type
-//! (checked by `tests/architecture.rs`).
+//! (checked by `tests/suite/architecture.rs`).
 
 pub mod dual_horizon;
 pub mod dynamics;
+mod initial;
 pub mod nernst_planck;
 pub mod scalar;
 mod wave;
@@ -13,7 +14,7 @@ pub use dynamics::DynamicSimulation;
 pub use nernst_planck::NernstPlanckSimulation;
 pub use scalar::ScalarSimulation;
 
-use crate::scene::{InitialVelocity, Physics, Scene, SceneError};
+use crate::scene::{Physics, Scene, SceneError};
 use crate::solver::Stepper;
 
 /// Builds the simulation of a scene, in its dimension and for its physics.
@@ -36,43 +37,5 @@ pub fn build(scene: &Scene) -> Result<Box<dyn Stepper>, SceneError> {
         (_, 1) => boxed(ScalarSimulation::<1>::new(scene)),
         (_, 2) => boxed(ScalarSimulation::<2>::new(scene)),
         (_, _) => boxed(ScalarSimulation::<3>::new(scene)),
-    }
-}
-
-/// Adds the scene's `[[initial.velocity]]` fields at the reference positions.
-pub(crate) fn add_initial_velocity<const D: usize>(
-    scene: &Scene,
-    reference: &[[f64; D]],
-    velocities: &mut [[f64; D]],
-) {
-    let (lo, hi) = scene.solid.bounds();
-    for field in &scene.initial_velocity {
-        for (v, x) in velocities.iter_mut().zip(reference) {
-            match *field {
-                InitialVelocity::Uniform(ref value) => {
-                    for k in 0..D {
-                        v[k] += value[k];
-                    }
-                }
-                InitialVelocity::Ramp {
-                    component,
-                    axis,
-                    from,
-                    to,
-                } => {
-                    let t = (x[axis] - lo[axis]) / (hi[axis] - lo[axis]);
-                    v[component] += from + t * (to - from);
-                }
-                InitialVelocity::Sine {
-                    component,
-                    axis,
-                    amplitude,
-                    modes,
-                } => {
-                    let t = (x[axis] - lo[axis]) / (hi[axis] - lo[axis]);
-                    v[component] += amplitude * (std::f64::consts::PI * modes * t).sin();
-                }
-            }
-        }
     }
 }

@@ -85,67 +85,9 @@ impl<const D: usize> NernstPlanckSimulation<D> {
         let n = discretization.len();
         let positions = discretization.nodes.reference();
         let volumes = discretization.nodes.volumes();
-        let phase: Vec<Phase> = positions
-            .iter()
-            .map(|x| match &spec.solid {
-                Some(s) if s.contains(x, 1e-12 * scene.spacing) => Phase::Solid,
-                _ => Phase::Liquid,
-            })
-            .collect();
         let manufactured = spec.manufactured.as_ref();
-        let mut concentration: Vec<Vec<f64>> = spec
-            .species
-            .iter()
-            .map(|s| {
-                phase
-                    .iter()
-                    .map(|p| {
-                        if p.is_solid() {
-                            s.initial_solid
-                        } else {
-                            s.initial_liquid
-                        }
-                    })
-                    .collect()
-            })
-            .collect();
-        let mut potential = vec![0.0; n];
-        let mut held = vec![false; n];
-        for (layer, nodes) in scene.boundary.iter().zip(&discretization.layers) {
-            for &i in nodes {
-                let i = i as usize;
-                match (layer.condition, manufactured) {
-                    (Condition::Value, _) => {
-                        for (c, s) in concentration.iter_mut().zip(&spec.species) {
-                            c[i] = s.boundary;
-                        }
-                        potential[i] = layer.value.first().copied().unwrap_or(0.0);
-                    }
-                    (Condition::Reference, Some(m)) => {
-                        for (k, c) in concentration.iter_mut().enumerate() {
-                            c[i] = m.concentration(k, positions[i][0]);
-                        }
-                        potential[i] = m.phi(positions[i][0]);
-                    }
-                    _ => continue,
-                }
-                held[i] = true;
-            }
-        }
-        if held.iter().all(|&h| h) {
-            return Err(scene.error(
-                "boundary",
-                "the held layers cover every node: nothing is left to solve",
-            ));
-        }
-        let any_dirichlet = held.iter().zip(&phase).any(|(h, p)| *h || p.is_solid());
-        if !any_dirichlet {
-            return Err(scene.error(
-                "boundary",
-                "φ needs a known value somewhere: hold a layer (`hold_value = 0.0`) or give a \
-                 solid region (φ = 0 there)",
-            ));
-        }
+        let (phase, mut concentration, potential, held) =
+            initial_state(scene, &spec, &discretization)?;
         let quadrature = |i: usize| match &multigrid {
             Some(g) if g.class[i].is_fine() => g.fine,
             Some(g) => g.coarse,
@@ -729,4 +671,79 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
     fn relative_error(&self) -> Option<f64> {
         self.errors().map(|e| e.into_iter().fold(0.0, f64::max))
     }
+}
+
+/// The initial phases (solid inside `[nernst_planck].solid`), concentrations and potential,
+/// and the held nodes (`hold_value` and `hold_reference` layers); an error where nothing is
+/// left to solve or φ has no known value anywhere.
+#[allow(clippy::type_complexity)]
+fn initial_state<const D: usize>(
+    scene: &Scene,
+    spec: &NernstPlanckSpec,
+    discretization: &Discretization<D>,
+) -> Result<(Vec<Phase>, Vec<Vec<f64>>, Vec<f64>, Vec<bool>), SceneError> {
+    let n = discretization.len();
+    let positions = discretization.nodes.reference();
+    let phase: Vec<Phase> = positions
+        .iter()
+        .map(|x| match &spec.solid {
+            Some(s) if s.contains(x, 1e-12 * scene.spacing) => Phase::Solid,
+            _ => Phase::Liquid,
+        })
+        .collect();
+    let manufactured = spec.manufactured.as_ref();
+    let mut concentration: Vec<Vec<f64>> = spec
+        .species
+        .iter()
+        .map(|s| {
+            phase
+                .iter()
+                .map(|p| {
+                    if p.is_solid() {
+                        s.initial_solid
+                    } else {
+                        s.initial_liquid
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    let mut potential = vec![0.0; n];
+    let mut held = vec![false; n];
+    for (layer, nodes) in scene.boundary.iter().zip(&discretization.layers) {
+        for &i in nodes {
+            let i = i as usize;
+            match (layer.condition, manufactured) {
+                (Condition::Value, _) => {
+                    for (c, s) in concentration.iter_mut().zip(&spec.species) {
+                        c[i] = s.boundary;
+                    }
+                    potential[i] = layer.value.first().copied().unwrap_or(0.0);
+                }
+                (Condition::Reference, Some(m)) => {
+                    for (k, c) in concentration.iter_mut().enumerate() {
+                        c[i] = m.concentration(k, positions[i][0]);
+                    }
+                    potential[i] = m.phi(positions[i][0]);
+                }
+                _ => continue,
+            }
+            held[i] = true;
+        }
+    }
+    if held.iter().all(|&h| h) {
+        return Err(scene.error(
+            "boundary",
+            "the held layers cover every node: nothing is left to solve",
+        ));
+    }
+    let any_dirichlet = held.iter().zip(&phase).any(|(h, p)| *h || p.is_solid());
+    if !any_dirichlet {
+        return Err(scene.error(
+            "boundary",
+            "φ needs a known value somewhere: hold a layer (`hold_value = 0.0`) or give a \
+             solid region (φ = 0 there)",
+        ));
+    }
+    Ok((phase, concentration, potential, held))
 }

@@ -118,7 +118,7 @@ impl ParticleBody {
             body_force: f.add("body_force", [0.0; 2]),
         };
         apply_boundary(scene, &layers, &mut nodes, &columns);
-        super::super::add_initial_velocity(
+        super::super::initial::add_initial_velocity(
             scene,
             nodes.base.reference(),
             nodes.fields.get_mut(columns.velocity),

@@ -117,7 +117,11 @@ impl<const D: usize> ElasticBody<D> {
     fn apply_initial_velocity(&mut self) {
         let nodes = &mut self.discretization.nodes;
         let velocities = nodes.fields.get_mut(self.columns.velocity);
-        super::super::add_initial_velocity(&self.scene, nodes.base.reference(), velocities);
+        super::super::initial::add_initial_velocity(
+            &self.scene,
+            nodes.base.reference(),
+            velocities,
+        );
     }
 
     /// Displacement pulses (thesis (4.168)): y = x + Σ u⁰(x).
