@@ -9,7 +9,6 @@ use rayon::prelude::*;
 
 use crate::discretization::{Families, NodeValue, Quadrature, RowValues};
 use crate::model::diffusion::DiffusionKernel;
-use crate::model::pmb::Influence;
 use crate::model::pmb::{PmbLaw, influence};
 use crate::scheme::{RowMask, ScalarOperator};
 use crate::simd::Simd;
@@ -349,6 +348,7 @@ mod tests {
     use super::*;
     use crate::discretization::grid::Lattice;
     use crate::integrate::lattice_symbol::{LatticeSymbol, on_lattice};
+    use crate::model::pmb::Influence;
     use crate::scene::Solid;
 
     /// A unit-spaced cube lattice of side `side`, perturbed by up to 0.2 spacings (seeded),
