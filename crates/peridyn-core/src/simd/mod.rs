@@ -7,16 +7,16 @@
 //! - `portable`: 4 lanes as a plain array (any CPU); `portable8`: 8 lanes as an array.
 //!
 //! By default the widest the CPU runs. The environment variable
-//! `PERIDYN_SIMD=portable|portable8|avx2|avx512` forces one (comparisons, CI, a slower but
-//! reproducible build); the command line rejects a value that is not one of these or that
+//! `PERIDYN_SIMD=portable|portable8|avx2|avx512` forces one (comparisons, CI, another
+//! machine's bits); the command line rejects a value that is not one of these or that
 //! this CPU cannot run (`Simd::from_env`).
 //!
 //! Every lane does the scalar code's IEEE operations in its order (no FMA), so the results
 //! depend on the lane count only, through the order the per-lane partial sums are added:
-//! `avx2` gives `portable`'s bits, `avx512` gives `portable8`'s (so `portable8` reproduces an
-//! AVX-512 machine's run anywhere), and 4 against 8 lanes agree to rounding. The linearized
-//! operator (stable-step estimates) sums in 4 lanes on every implementation, as it always
-//! has; its results decide Δt.
+//! `avx2` gives `portable`'s bits, `avx512` gives `portable8`'s (so `portable8` gives these
+//! loops an AVX-512 machine's bits on any CPU), and 4 against 8 lanes agree to rounding. The
+//! linearized operator sums in 4 lanes on every implementation (`Simd::four_lanes`): its sums
+//! decide the stable step Δt, which thus does not depend on whether the CPU has AVX-512.
 
 mod lanes;
 mod portable;

@@ -56,12 +56,17 @@ impl<const N: usize> Lanes for Portable<N> {
         Portable(std::array::from_fn(|l| values[l]))
     }
 
-    /// One value at a time, bounds checked: these lanes are the reference, not the fast path.
+    /// Node by node, bounds checked (once per node): these lanes are the reference.
     #[inline(always)]
     unsafe fn gather<const D: usize>(values: &[f64], nodes: &[u32]) -> [Self; D] {
-        std::array::from_fn(|k| {
-            Portable(std::array::from_fn(|l| values[D * nodes[l] as usize + k]))
-        })
+        let (per_node, _) = values.as_chunks::<D>();
+        let mut out = [Portable([0.0; N]); D];
+        for (l, &j) in nodes[..N].iter().enumerate() {
+            for (k, x) in per_node[j as usize].iter().enumerate() {
+                out[k].0[l] = *x;
+            }
+        }
+        out
     }
 
     #[inline(always)]

@@ -207,14 +207,20 @@ pub(super) fn pmb_forces<const D: usize, M: RowMask, V: NodeVolumes>(
     law.volumes.check(rows.positions.len());
     macro_rules! run {
         ($linear:literal, $beta:literal, $energy:literal) => {
-            split_rows(rows.families, 0, terms, intact, &|first, terms, state| {
-                simd.run(RowsLoop::<D, M, V, $linear, $beta, $energy> {
-                    rows: Rows { first, ..rows },
-                    law: &law,
-                    terms,
-                    state,
-                })
-            })
+            split_rows(
+                rows.families,
+                rows.first,
+                terms,
+                intact,
+                &|first, terms, state| {
+                    simd.run(RowsLoop::<D, M, V, $linear, $beta, $energy> {
+                        rows: Rows { first, ..rows },
+                        law: &law,
+                        terms,
+                        state,
+                    })
+                },
+            )
         };
     }
     match (law.linear, law.beta, energy) {
@@ -359,8 +365,8 @@ impl<L: Lanes, const D: usize> RowSums<L, D> {
 impl<V: NodeVolumes> Law<'_, V> {
     /// The PMB bond force (2.33) of node i (at `y_i`) on the N bonds to `nodes`, of reference
     /// lengths `lengths` and states `states`, added to `sums`: a bond whose stretch reaches
-    /// s0 breaks (its state set to 0, its β V'_j added to the damage numerator), and a
-    /// broken bond adds 0. `positions` holds D values per node.
+    /// s0, or is NaN, breaks (its state set to 0, its β V'_j added to the damage numerator),
+    /// and a broken bond adds 0. `positions` holds D values per node.
     ///
     /// # Safety
     /// Every index in `nodes` is a node of `positions` and of the volumes.
