@@ -167,6 +167,10 @@ struct RunArgs {
 /// 130 interrupted.
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Before any kernel runs: a bad value is the user's to fix, not silently replaced.
+    if let Err(message) = peridyn::simd::Simd::from_env() {
+        return Failure::BadInput(message).report();
+    }
     let command = cli.command.unwrap_or_else(|| {
         let (preset, variant) = builtin::DEFAULT;
         Command::Record {

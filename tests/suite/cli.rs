@@ -658,3 +658,43 @@ fn corrosion_recording_holds_concentration_phase_and_scheme_masks() {
         ],
     );
 }
+
+/// `PERIDYN_SIMD` picks the bond loops' lanes: a value that is none of the four names, or
+/// one this CPU cannot run, is bad input (exit code 2, the variable and the choices named);
+/// implementations of one width end a run on the same fields bit for bit (AVX2 on the
+/// portable loop's, AVX-512 on the 8-lane portable loop's), and the two widths do not
+/// (their partial sums are added in other orders).
+#[test]
+fn the_simd_choice_is_checked_and_one_width_gives_one_result() {
+    use peridyn::simd::Simd;
+    let output = temp("simd.rrd");
+    let run = |simd: &str| {
+        Command::new(env!("CARGO_BIN_EXE_peridyn"))
+            .env("PERIDYN_SIMD", simd)
+            .args(["record", "pmb-block-3d", "--variant", "small", "-q", "-o"])
+            .arg(&output)
+            .output()
+            .expect("run peridyn")
+    };
+    let bad = run("sse9");
+    assert_eq!(bad.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(err.contains("PERIDYN_SIMD") && err.contains("portable8"), "{err}");
+    let hashes = |simd: Simd| {
+        let out = run(simd.name());
+        if !simd.runs_here() {
+            assert_eq!(out.status.code(), Some(2), "{simd:?}");
+            return None;
+        }
+        let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+        assert!(out.status.success(), "{stdout}");
+        stdout.lines().find(|l| l.contains("field hashes")).map(String::from)
+    };
+    let (four, eight) = (hashes(Simd::Portable), hashes(Simd::Portable8));
+    assert!(four.is_some() && four != eight);
+    for (vector, portable) in [(Simd::Avx2, &four), (Simd::Avx512, &eight)] {
+        if let Some(h) = hashes(vector) {
+            assert_eq!(&Some(h), portable, "{vector:?}");
+        }
+    }
+}

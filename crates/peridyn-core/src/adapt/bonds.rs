@@ -1,13 +1,9 @@
 //! The exact bond-stretch check shared by the switching rules of the hybrid (§3.3) and
 //! multi-adaptive (§3.5) schemes: criterion (3.80) as f l² − r² ≤ 0 on squared lengths, and
-//! the least margin over a node's bonds in SIMD lanes.
+//! the least margin over a node's bonds, written once over the lanes of `simd`.
 
 use crate::discretization::Families;
-
-#[cfg(target_arch = "x86_64")]
-mod avx2;
-#[cfg(target_arch = "x86_64")]
-mod avx512;
+use crate::simd::{LaneLoop, Lanes, Portable, Simd};
 
 /// What a scan minimizes over a node's bonds, from r² and l² (a bond's squared current and
 /// reference lengths).
@@ -29,21 +25,12 @@ impl Measure {
     }
 }
 
-/// The bond data a check reads, and whether the CPU runs its lanes 4- or 8-wide.
+/// The bond data a check reads, and the lanes it runs on.
 pub struct BondView<'a, const D: usize> {
     reference: &'a [[f64; D]],
     positions: &'a [[f64; D]],
     pub families: &'a Families,
-    #[cfg(target_arch = "x86_64")]
-    avx2: bool,
-    #[cfg(target_arch = "x86_64")]
-    avx512: bool,
-    /// The hand-written 2D kernel (`avx512::least_d2`) can run.
-    #[cfg(target_arch = "x86_64")]
-    kernel_2d: bool,
-    /// Without it, the hand-written AVX2 kernel (`avx2::least`, 2D and 3D) can run.
-    #[cfg(target_arch = "x86_64")]
-    kernel_avx2: bool,
+    simd: Simd,
 }
 
 impl<'a, const D: usize> BondView<'a, D> {
@@ -52,138 +39,111 @@ impl<'a, const D: usize> BondView<'a, D> {
         positions: &'a [[f64; D]],
         families: &'a Families,
     ) -> Self {
+        assert_eq!(reference.len(), positions.len());
         BondView {
             reference,
             positions,
             families,
-            #[cfg(target_arch = "x86_64")]
-            avx2: std::arch::is_x86_feature_detected!("avx2"),
-            #[cfg(target_arch = "x86_64")]
-            avx512: crate::simd::avx512_f_vl(),
-            #[cfg(target_arch = "x86_64")]
-            kernel_2d: D == 2 && crate::simd::avx512_f_vl(),
-            #[cfg(target_arch = "x86_64")]
-            kernel_avx2: (D == 2 || D == 3) && crate::simd::avx2(),
+            simd: Simd::selected(),
         }
     }
 
-    /// The least `measure` over bonds (i, j), j in `neighbors`: the hand-written AVX-512
-    /// kernel on 2D scenes where it can run, else the hand-written AVX2 one (2D and 3D), the
-    /// compiled lane builds otherwise (the same value in every build: a minimum).
+    /// The least `measure` over bonds (i, j), j in `neighbors` (the same value on every
+    /// lane implementation: a minimum).
     #[inline(always)]
     pub fn least(&self, i: usize, neighbors: &[u32], measure: Measure) -> f64 {
-        #[cfg(target_arch = "x86_64")]
-        if self.kernel_2d {
-            let (reference, positions) =
-                (self.reference.as_flattened(), self.positions.as_flattened());
-            // SAFETY: the features were detected in `new` and D is 2.
-            return unsafe {
-                match measure {
-                    Measure::Margin(factor) => {
-                        avx512::least_d2::<false>(i, neighbors, reference, positions, factor)
-                    }
-                    Measure::NegatedSquaredRatio => {
-                        avx512::least_d2::<true>(i, neighbors, reference, positions, 0.0)
-                    }
-                }
-            };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if self.kernel_avx2 {
-            let (reference, positions) = (self.reference, self.positions);
-            // SAFETY: AVX2 was detected in `new` and D is 2 or 3.
-            return unsafe {
-                match measure {
-                    Measure::Margin(factor) => {
-                        avx2::least::<D, false>(i, neighbors, reference, positions, factor)
-                    }
-                    Measure::NegatedSquaredRatio => {
-                        avx2::least::<D, true>(i, neighbors, reference, positions, 0.0)
-                    }
-                }
-            };
-        }
+        self.least_on(self.simd, i, neighbors, measure)
+    }
+
+    /// `least` on the lanes of `simd`.
+    fn least_on(&self, simd: Simd, i: usize, neighbors: &[u32], measure: Measure) -> f64 {
+        let (reference, positions) = (self.reference, self.positions);
         match measure {
-            Measure::Margin(factor) => {
-                self.least_compiled(i, neighbors, move |r2, l2| critical_margin(factor, r2, l2))
-            }
-            Measure::NegatedSquaredRatio => self.least_compiled(i, neighbors, |r2, l2| -(r2 / l2)),
+            Measure::Margin(factor) => simd.run(Scan::<D, false> {
+                i,
+                neighbors,
+                reference,
+                positions,
+                factor,
+            }),
+            Measure::NegatedSquaredRatio => simd.run(Scan::<D, true> {
+                i,
+                neighbors,
+                reference,
+                positions,
+                factor: 0.0,
+            }),
         }
-    }
-
-    /// The least g(r², l²) over bonds (i, j), j in `neighbors`, in the compiled lane builds.
-    #[inline(always)]
-    fn least_compiled(&self, i: usize, neighbors: &[u32], g: impl Fn(f64, f64) -> f64) -> f64 {
-        #[cfg(target_arch = "x86_64")]
-        if self.avx512 {
-            // SAFETY: the CPU supports AVX-512 F/VL (detected in `new`).
-            return unsafe { least_avx512(i, neighbors, self.reference, self.positions, g) };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: the CPU supports AVX2 (detected in `new`).
-            return unsafe { least_avx2(i, neighbors, self.reference, self.positions, g) };
-        }
-        least_portable::<D, 4>(i, neighbors, self.reference, self.positions, g)
     }
 }
 
-/// A build of `least_portable` with `$lanes` lanes, compiled for `$features`.
-macro_rules! least_build {
-    ($(#[$doc:meta])* $name:ident, $features:literal, $lanes:literal) => {
-        $(#[$doc])*
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $features)]
-        fn $name<const D: usize>(
-            i: usize,
-            neighbors: &[u32],
-            reference: &[[f64; D]],
-            positions: &[[f64; D]],
-            g: impl Fn(f64, f64) -> f64,
-        ) -> f64 {
-            least_portable::<D, $lanes>(i, neighbors, reference, positions, g)
-        }
-    };
-}
-
-least_build!(
-    /// `least_portable` with 8 lanes compiled for AVX-512. A minimum does not depend on the
-    /// order its values are compared in, so every build returns the same bits.
-    least_avx512,
-    "avx512f,avx512vl",
-    8
-);
-
-least_build!(
-    /// `least_portable` compiled for AVX2 (4-wide lanes, no FMA: bit-identical results).
-    least_avx2,
-    "avx,avx2",
-    4
-);
-
-/// Minimum of g over the bonds in `LANES` independent lanes (a min reduction does not
-/// vectorize otherwise); NaN values are ignored, as by `f64::min`.
-#[inline(always)]
-fn least_portable<const D: usize, const LANES: usize>(
+/// The least of f l² − r² (`NEGATED_RATIO` false, f = `factor`) or of −r²/l² (true) over the
+/// bonds (i, j), j in `neighbors`: N bonds at a time in N independent lanes (a min reduction
+/// does not vectorize otherwise), the remainder one at a time. NaN values are ignored, as by
+/// `lesser`.
+struct Scan<'a, const D: usize, const NEGATED_RATIO: bool> {
     i: usize,
-    neighbors: &[u32],
-    reference: &[[f64; D]],
-    positions: &[[f64; D]],
-    g: impl Fn(f64, f64) -> f64,
-) -> f64 {
-    let mut lanes = [f64::INFINITY; LANES];
-    let chunks = neighbors.chunks_exact(LANES);
-    for &j in chunks.remainder() {
-        let (r2, l2) = bond_squares(i, j as usize, reference, positions);
-        lanes[0] = lesser(lanes[0], g(r2, l2));
+    neighbors: &'a [u32],
+    reference: &'a [[f64; D]],
+    positions: &'a [[f64; D]],
+    factor: f64,
+}
+
+impl<const D: usize, const NEGATED_RATIO: bool> LaneLoop for Scan<'_, D, NEGATED_RATIO> {
+    type Output = f64;
+
+    #[inline(always)]
+    fn run<L: Lanes>(self) -> f64 {
+        let node_count = self.positions.len();
+        // Every neighbour is a node (checked once per row: the gathers do not check).
+        let last = self.neighbors.iter().copied().max().unwrap_or(0) as usize;
+        assert!(self.i < node_count && (self.neighbors.is_empty() || last < node_count));
+        let mut least = L::splat(f64::INFINITY);
+        let chunks = self.neighbors.chunks_exact(L::N);
+        let tail = chunks.remainder();
+        for nodes in chunks {
+            // SAFETY: the indices were checked above.
+            least = unsafe { self.measure::<L>(nodes) }.min(least);
+        }
+        tail.chunks(1)
+            .fold(least.fold(f64::INFINITY, lesser), |a, node| {
+                // SAFETY: the index was checked above.
+                lesser(a, unsafe { self.measure::<Portable<1>>(node) }.0[0])
+            })
     }
-    for chunk in chunks {
-        for t in 0..LANES {
-            let (r2, l2) = bond_squares(i, chunk[t] as usize, reference, positions);
-            lanes[t] = lesser(lanes[t], g(r2, l2));
+}
+
+impl<const D: usize, const NEGATED_RATIO: bool> Scan<'_, D, NEGATED_RATIO> {
+    /// The measure of the N bonds to `nodes`, r² and l² formed as `bond_squares` forms them.
+    ///
+    /// # Safety
+    /// Every index in `nodes` is a node.
+    #[inline(always)]
+    unsafe fn measure<L: Lanes>(&self, nodes: &[u32]) -> L {
+        let (x, y) = (self.reference[self.i], self.positions[self.i]);
+        // SAFETY: the caller guarantees the indices.
+        let (p, q) = unsafe {
+            (
+                L::gather::<D>(self.reference.as_flattened(), nodes),
+                L::gather::<D>(self.positions.as_flattened(), nodes),
+            )
+        };
+        let (mut l2, mut r2) = (L::zero(), L::zero());
+        for k in 0..D {
+            let (dx, dy) = (p[k] - L::splat(x[k]), q[k] - L::splat(y[k]));
+            // 0 + d² = d² for d² ≥ 0: the first axis as `bond_squares` adds it.
+            (l2, r2) = if k == 0 {
+                (dx * dx, dy * dy)
+            } else {
+                (l2 + dx * dx, r2 + dy * dy)
+            };
+        }
+        if NEGATED_RATIO {
+            -(r2 / l2)
+        } else {
+            L::splat(self.factor) * l2 - r2
         }
     }
-    lanes.into_iter().fold(f64::INFINITY, lesser)
 }
 
 /// min(a, v) for a non-NaN a, ignoring a NaN v; branch-free (a SIMD min).
@@ -222,39 +182,42 @@ mod tests {
     use crate::discretization::grid::Lattice;
     use crate::scene::Solid;
 
-    /// Every build (portable 4 lanes, AVX2, AVX-512 8 lanes, the hand-written kernels)
-    /// returns the plain minimum over the row, for both measures, in 2D and 3D, on rows whose
-    /// lengths are not multiples of the lane count.
+    /// Every lane implementation this CPU runs (portable at 4 and 8 lanes, AVX2, AVX-512)
+    /// returns the portable scan's bits, the plain minimum over the row, for both measures,
+    /// in 1D, 2D and 3D, on rows whose lengths are not multiples of the lane count.
     #[test]
-    fn least_margin_is_the_rows_minimum_in_every_build() {
-        let cube = Solid::Box {
-            min: vec![0.0; 3],
-            max: vec![7.0; 3],
+    fn least_margin_is_the_rows_minimum_on_every_implementation() {
+        let (reference, positions) = deformed::<3>(7.0, 3, |x| {
+            [
+                x[0] * (1.0 + 0.01 * x[1].sin()),
+                x[1],
+                x[2] + 1e-3 * x[0] * x[0],
+            ]
+        });
+        assert_rows_minimum(&reference, &positions, 2.6);
+        let (reference, positions) = deformed::<2>(15.0, 5, |x| {
+            [x[0] * (1.0 + 0.01 * x[1].sin()), x[1] + 1e-3 * x[0] * x[0]]
+        });
+        assert_rows_minimum(&reference, &positions, 4.3);
+        let (reference, positions) =
+            deformed::<1>(80.0, 7, |x| [x[0] * (1.0 + 0.01 * (0.3 * x[0]).sin())]);
+        assert_rows_minimum(&reference, &positions, 4.3);
+    }
+
+    /// A unit lattice on a cube of side `side`, perturbed (seeded), and its image under
+    /// `deform`.
+    fn deformed<const D: usize>(
+        side: f64,
+        seed: u64,
+        deform: impl Fn([f64; D]) -> [f64; D],
+    ) -> (Vec<[f64; D]>, Vec<[f64; D]>) {
+        let solid = Solid::Box {
+            min: vec![0.0; D],
+            max: vec![side; D],
         };
-        let lattice = Lattice::<3>::build(&cube, 1.0, [-0.2, 0.2], 3);
-        let positions: Vec<[f64; 3]> = lattice
-            .positions
-            .iter()
-            .map(|x| {
-                [
-                    x[0] * (1.0 + 0.01 * x[1].sin()),
-                    x[1],
-                    x[2] + 1e-3 * x[0] * x[0],
-                ]
-            })
-            .collect();
-        assert_rows_minimum(&lattice.positions, &positions, 2.6);
-        let square = Solid::Box {
-            min: vec![0.0; 2],
-            max: vec![15.0; 2],
-        };
-        let plane = Lattice::<2>::build(&square, 1.0, [-0.2, 0.2], 5);
-        let positions: Vec<[f64; 2]> = plane
-            .positions
-            .iter()
-            .map(|x| [x[0] * (1.0 + 0.01 * x[1].sin()), x[1] + 1e-3 * x[0] * x[0]])
-            .collect();
-        assert_rows_minimum(&plane.positions, &positions, 4.3);
+        let reference = Lattice::<D>::build(&solid, 1.0, [-0.2, 0.2], seed).positions;
+        let positions = reference.iter().map(|&x| deform(x)).collect();
+        (reference, positions)
     }
 
     fn assert_rows_minimum<const D: usize>(
@@ -264,6 +227,8 @@ mod tests {
     ) {
         let families = Families::build(reference, horizon);
         let view = BondView::new(reference, positions, &families);
+        let supported = Simd::supported();
+        assert!(supported.contains(&Simd::Portable) && supported.contains(&Simd::Portable8));
         let mut unaligned = 0;
         for measure in [
             Measure::Margin(1.0 + 0.5 * 0.01),
@@ -279,17 +244,13 @@ mod tests {
                         measure.of(r2, l2)
                     })
                     .fold(f64::INFINITY, f64::min);
-                assert_eq!(view.least(i, row, measure), plain);
-                let g = |r2, l2| measure.of(r2, l2);
-                assert_eq!(view.least_compiled(i, row, g), plain);
-                assert_eq!(
-                    least_portable::<D, 4>(i, row, reference, positions, g),
-                    plain
-                );
-                assert_eq!(
-                    least_portable::<D, 8>(i, row, reference, positions, g),
-                    plain
-                );
+                let portable = view.least_on(Simd::Portable, i, row, measure);
+                assert_eq!(portable, plain);
+                assert_eq!(view.least(i, row, measure).to_bits(), portable.to_bits());
+                for &simd in &supported {
+                    let least = view.least_on(simd, i, row, measure);
+                    assert_eq!(least.to_bits(), portable.to_bits(), "{simd:?}, row {i}");
+                }
             }
         }
         assert!(unaligned > 0);

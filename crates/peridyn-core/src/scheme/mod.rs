@@ -4,7 +4,6 @@ use rayon::prelude::*;
 
 pub mod dual_horizon;
 pub mod nnpp;
-pub mod pairs;
 pub mod runs;
 pub mod standard;
 pub mod wls;

@@ -1,21 +1,23 @@
 //! Standard meshfree particle scheme (thesis §3.1, (3.1) with the nonlinear bond force (2.33)):
 //! a sum over all family nodes weighted by the partial-volume factor β (3.2).
 //!
-//! The force loop is a per-node gather over CSR rows, parallel over blocks of nodes; each
-//! task owns its rows of the force array and of the bond states.
+//! The force loop (`force`) is a per-node gather over CSR rows, parallel over blocks of
+//! nodes; each task owns its rows of the force array and of the bond states. It and the
+//! linearized operator's rows (`linearized`) are written once over the lanes of `simd`.
 
 use rayon::prelude::*;
 
 use crate::discretization::{Families, NodeValue, Quadrature, RowValues};
 use crate::model::diffusion::DiffusionKernel;
-use crate::model::pmb::Influence;
 use crate::model::pmb::{PmbLaw, influence};
 use crate::scheme::{RowMask, ScalarOperator};
+use crate::simd::Simd;
 
-#[cfg(target_arch = "x86_64")]
-mod avx2;
-#[cfg(target_arch = "x86_64")]
-mod avx512;
+mod force;
+mod linearized;
+
+use force::{Law, PerNode, Rows, Uniform, pmb_forces};
+use linearized::{LinearizedRow, RowLoop};
 
 /// What the force loop produces per node.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -106,9 +108,8 @@ impl<const D: usize> Standard<'_, D> {
 
     /// As `forces`, skipping the rows whose mask entry is `skipped` (the hybrid scheme's Ω_w
     /// nodes, seed-thesis-ch2-3 §5): their terms are left as they are and their bonds are
-    /// never evaluated. Without `energy` the hand-written kernel leaves the strain-energy
-    /// densities as they are (a step no frame reads skips that sum); the other builds always
-    /// compute them.
+    /// never evaluated. Without `energy` the strain-energy densities are left as they are (a
+    /// step no frame reads skips that sum).
     pub fn forces_masked<M: RowMask>(
         &self,
         positions: &[[f64; D]],
@@ -117,66 +118,30 @@ impl<const D: usize> Standard<'_, D> {
         skip: Option<&[M]>,
         energy: bool,
     ) -> u64 {
-        let (families, law, quadrature) = (self.families, self.law, self.quadrature);
-        assert_eq!(positions.len(), families.node_count());
-        assert_eq!(intact.len(), families.bond_count());
-        let rows = Rows {
-            positions,
-            families,
-            quadrature,
-            first: 0,
-            s0: law.critical_stretch,
-            skip,
-        };
-        #[cfg(target_arch = "x86_64")]
-        if let Some(v) = self.uniform_volume
-            && (D == 2 || D == 3)
-            && let Some(kernel) = hand_kernel()
-        {
-            let weight = BondWeight::of(law, quadrature);
-            let flags = (
-                law.influence == Influence::Linear,
-                quadrature.volume_correction,
-                energy,
-            );
-            // SAFETY: `hand_kernel` detected the kernel's instruction set; D is 2 or 3.
-            return unsafe {
-                match kernel {
-                    HandKernelSet::Avx512 => {
-                        hand_forces::<avx512::Avx512, D, M>(&rows, intact, terms, weight, v, flags)
-                    }
-                    HandKernelSet::Avx2 => {
-                        hand_forces::<avx2::Avx2, D, M>(&rows, intact, terms, weight, v, flags)
-                    }
-                }
-            };
-        }
-        self.with_bond_law(GatherLoop {
-            rows: &rows,
-            intact,
-            terms,
-        })
+        let rows = Rows::all(positions, self.families, skip);
+        self.forces_on(Simd::selected(), rows, intact, terms, energy)
     }
 
-    /// Runs `bond_loop` with this scheme's bond weight ω c β (times V where all volumes are
-    /// equal) and per-node volume V'_j: one monomorphized loop per (influence, β, volume)
-    /// combination, so no branch on them inside.
-    pub(crate) fn with_bond_law<L: BondLoop>(&self, bond_loop: L) -> u64 {
-        let volumes = self.volumes;
-        let weight = BondWeight::of(self.law, self.quadrature);
-        macro_rules! with_volume {
-            ($linear:literal, $beta:literal) => {
-                match self.uniform_volume {
-                    Some(v) => bond_loop.run(move |l| weight.at::<$linear, $beta>(l) * v, |_| 1.0),
-                    None => bond_loop.run(move |l| weight.at::<$linear, $beta>(l), |j| volumes[j]),
-                }
-            };
-        }
-        match (self.law.influence, self.quadrature.volume_correction) {
-            (Influence::Constant, true) => with_volume!(false, true),
-            (Influence::Constant, false) => with_volume!(false, false),
-            (Influence::Linear, true) => with_volume!(true, true),
-            (Influence::Linear, false) => with_volume!(true, false),
+    /// The force loop on `rows` on the lanes of `simd`.
+    fn forces_on<M: RowMask>(
+        &self,
+        simd: Simd,
+        rows: Rows<D, M>,
+        intact: &mut [u8],
+        terms: &mut [NodeTerms<D>],
+        energy: bool,
+    ) -> u64 {
+        let (law, quadrature) = (self.law, self.quadrature);
+        // One volume for every node saves a gather per bond.
+        match self.uniform_volume {
+            Some(v) => {
+                let law = Law::of(law, quadrature, Uniform(v));
+                pmb_forces(simd, rows, law, intact, terms, energy)
+            }
+            None => {
+                let law = Law::of(law, quadrature, PerNode(self.volumes));
+                pmb_forces(simd, rows, law, intact, terms, energy)
+            }
         }
     }
 
@@ -307,8 +272,9 @@ impl<const D: usize> Standard<'_, D> {
         skip: impl Fn(usize) -> bool + Sync,
     ) {
         let (families, reference) = (self.families, self.reference);
-        #[cfg(target_arch = "x86_64")]
-        let avx2 = crate::simd::avx2();
+        // Four lanes whatever the CPU: these sums decide the stable step, and stay as they
+        // were measured.
+        let simd = Simd::selected().four_lanes();
         out.par_iter_mut()
             .enumerate()
             .with_min_len(256)
@@ -324,103 +290,12 @@ impl<const D: usize> Standard<'_, D> {
                         Linearized::PerLength(c) => families.row_values(c, i),
                     },
                 };
-                #[cfg(target_arch = "x86_64")]
-                if avx2 && (D == 2 || D == 3) {
-                    // SAFETY: AVX2 was detected above; D is 2 or 3.
-                    *o = unsafe { avx2::linearized_row(&row, reference, u) };
-                    return;
-                }
-                *o = linearized_row::<D, LANES>(&row, reference, u);
+                *o = simd.run(RowLoop {
+                    row: &row,
+                    reference,
+                    u,
+                });
             });
-    }
-}
-
-/// One row of [`Standard::apply_linearized`]: node i's bonds, their states and coefficients.
-struct LinearizedRow<'a> {
-    i: usize,
-    neighbors: &'a [u32],
-    states: &'a [u8],
-    coefficients: &'a [f64],
-}
-
-/// Σ_j c_ij ((ξ · (u_i − u_j)) ξ over the row's intact bonds, `N` bonds together (a broken
-/// bond's coefficient counts as 0), the remainder one by one. The lane loops compile to
-/// SIMD arithmetic; the gathers stay scalar (`avx2::linearized_row` gives these bits at
-/// 4 lanes with vector gathers).
-#[inline(always)]
-fn linearized_row<const D: usize, const N: usize>(
-    row: &LinearizedRow,
-    reference: &[[f64; D]],
-    u: &[[f64; D]],
-) -> [f64; D] {
-    let (x_i, u_i) = (reference[row.i], u[row.i]);
-    let blocked = row.neighbors.len() / N * N;
-    let mut acc_lanes = [[0.0; N]; D];
-    for ((nb, st), co) in row.neighbors[..blocked]
-        .chunks_exact(N)
-        .zip(row.states[..blocked].chunks_exact(N))
-        .zip(row.coefficients[..blocked].chunks_exact(N))
-    {
-        let mut xi = [[0.0; N]; D];
-        let mut du = [[0.0; N]; D];
-        for l in 0..N {
-            let j = nb[l] as usize;
-            for k in 0..D {
-                xi[k][l] = reference[j][k] - x_i[k];
-                du[k][l] = u_i[k] - u[j][k];
-            }
-        }
-        let mut scale = [0.0; N];
-        for l in 0..N {
-            let mut proj = xi[0][l] * du[0][l];
-            for k in 1..D {
-                proj += xi[k][l] * du[k][l];
-            }
-            scale[l] = if st[l] != 0 { co[l] * proj } else { 0.0 };
-        }
-        for k in 0..D {
-            for l in 0..N {
-                acc_lanes[k][l] += scale[l] * xi[k][l];
-            }
-        }
-    }
-    let mut acc = [0.0; D];
-    for k in 0..D {
-        acc[k] = acc_lanes[k].iter().sum();
-    }
-    linearized_tail(row, blocked, reference, u, &mut acc);
-    acc
-}
-
-/// The row's bonds from its `first`-th on, one by one, added to `acc` (`linearized_row`'s
-/// remainder after its blocks of lanes).
-#[inline(always)]
-fn linearized_tail<const D: usize>(
-    row: &LinearizedRow,
-    first: usize,
-    reference: &[[f64; D]],
-    u: &[[f64; D]],
-    acc: &mut [f64; D],
-) {
-    let (x_i, u_i) = (reference[row.i], u[row.i]);
-    let tail = row.neighbors[first..]
-        .iter()
-        .zip(&row.states[first..])
-        .zip(&row.coefficients[first..]);
-    for ((&j, &state), &coefficient) in tail {
-        if state == 0 {
-            continue;
-        }
-        let j = j as usize;
-        let xi: [f64; D] = std::array::from_fn(|k| reference[j][k] - x_i[k]);
-        let mut proj = xi[0] * (u_i[0] - u[j][0]);
-        for k in 1..D {
-            proj += xi[k] * (u_i[k] - u[j][k]);
-        }
-        let scale = coefficient * proj;
-        for k in 0..D {
-            acc[k] += scale * xi[k];
-        }
     }
 }
 
@@ -463,489 +338,9 @@ pub fn diffusion_operator<const D: usize>(
     ScalarOperator::from_rows(rows, blocks)
 }
 
-/// The bond weight ω(‖ξ‖) c β(‖ξ‖) of (2.33) in the sum (3.1), without the volume: the
-/// influence ω (constant, or linear 1 − ‖ξ‖/δ) and the partial-volume factor β (3.2) chosen
-/// by the const parameters, so each combination is its own branch-free function.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct BondWeight {
-    c: f64,
-    horizon: f64,
-    /// δ + Δx/2, where β reaches 0.
-    reach: f64,
-    inv_dx: f64,
-}
-
-impl BondWeight {
-    fn of(law: &PmbLaw, quadrature: &Quadrature) -> BondWeight {
-        BondWeight {
-            c: law.micromodulus,
-            horizon: law.horizon,
-            reach: quadrature.horizon + 0.5 * quadrature.spacing,
-            inv_dx: 1.0 / quadrature.spacing,
-        }
-    }
-
-    #[inline(always)]
-    fn at<const LINEAR: bool, const BETA: bool>(&self, l: f64) -> f64 {
-        let w = if LINEAR {
-            self.c * (1.0 - l / self.horizon).max(0.0)
-        } else {
-            self.c
-        };
-        if BETA {
-            w * ((self.reach - l) * self.inv_dx).clamp(0.0, 1.0)
-        } else {
-            w
-        }
-    }
-}
-
 /// Bond state μ: 1 intact, 0 broken (2.34). One byte per directed bond.
 pub fn intact_bonds(count: usize) -> Vec<u8> {
     vec![1; count]
-}
-
-/// A PMB force loop, run with the bond weight ω c β (times V where all volumes are equal)
-/// and the volume V'_j of [`Standard::with_bond_law`]. Returns the directed bonds broken.
-pub(crate) trait BondLoop {
-    fn run(self, weight: impl Fn(f64) -> f64 + Sync, volume: impl Fn(usize) -> f64 + Sync) -> u64;
-}
-
-/// The per-node gather: every directed bond evaluated from its own row.
-struct GatherLoop<'a, 'b, const D: usize, M> {
-    rows: &'a Rows<'a, D, M>,
-    intact: &'b mut [u8],
-    terms: &'b mut [NodeTerms<D>],
-}
-
-impl<const D: usize, M: RowMask> BondLoop for GatherLoop<'_, '_, D, M> {
-    fn run(self, weight: impl Fn(f64) -> f64 + Sync, volume: impl Fn(usize) -> f64 + Sync) -> u64 {
-        pmb_rows(self.rows, self.intact, self.terms, weight, volume)
-    }
-}
-
-/// Nodes per task of the force loop.
-const ROWS_PER_TASK: usize = 512;
-
-/// The gather loop of `Standard::forces`: f_i = Σ_j μ ω c s β V_j e_ij, (2.33) in the sum
-/// (3.1). Node ranges are split recursively (no allocation) so each task owns its rows of the
-/// node terms and of the bond states.
-#[inline(always)]
-fn pmb_rows<const D: usize, M: RowMask>(
-    rows: &Rows<D, M>,
-    intact: &mut [u8],
-    terms: &mut [NodeTerms<D>],
-    weight: impl Fn(f64) -> f64 + Sync,
-    volume: impl Fn(usize) -> f64 + Sync,
-) -> u64 {
-    #[cfg(target_arch = "x86_64")]
-    let (avx512, avx2) = (
-        avx512_detected(),
-        std::arch::is_x86_feature_detected!("avx2"),
-    );
-    let kernel = |first: usize, terms: &mut [NodeTerms<D>], state: &mut [u8]| -> u64 {
-        let block = Rows { first, ..*rows };
-        #[cfg(target_arch = "x86_64")]
-        if avx512 {
-            // SAFETY: the CPU supports AVX-512 F/VL/DQ (detected above).
-            return unsafe { rows_avx512(&block, terms, state, &weight, &volume) };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if avx2 {
-            // SAFETY: the CPU supports AVX2 (detected above).
-            return unsafe { rows_avx2(&block, terms, state, &weight, &volume) };
-        }
-        rows_portable::<D, LANES, M>(&block, terms, state, &weight, &volume)
-    };
-    split_rows(rows.families, 0, terms, intact, &kernel)
-}
-
-/// A block of consecutive rows of the force loop.
-#[derive(Clone, Copy)]
-struct Rows<'a, const D: usize, M> {
-    positions: &'a [[f64; D]],
-    families: &'a Families,
-    quadrature: &'a Quadrature,
-    first: usize,
-    s0: f64,
-    skip: Option<&'a [M]>,
-}
-
-impl<const D: usize, M: RowMask> Rows<'_, D, M> {
-    /// The block's rows the mask does not skip: (node, its terms, its bond states), `terms`
-    /// and `state` being the block's.
-    fn each_row<'t>(
-        &self,
-        terms: &'t mut [NodeTerms<D>],
-        state: &'t mut [u8],
-    ) -> impl Iterator<Item = (usize, &'t mut NodeTerms<D>, &'t mut [u8])> {
-        let families = self.families;
-        let (first, skip) = (self.first, self.skip);
-        // `state` starts at the block's first bond; `consumed` is the bond `rest` starts at.
-        let mut rest = state;
-        let mut consumed = families.offsets[first];
-        terms.iter_mut().enumerate().filter_map(move |(row, t_i)| {
-            let i = first + row;
-            // A skipped row (most rows of a hybrid's Ω_w) costs one mask read.
-            if skip.is_some_and(|mask| mask[i].skipped()) {
-                return None;
-            }
-            let (start, end) = (families.offsets[i], families.offsets[i + 1]);
-            let (_, tail) = std::mem::take(&mut rest).split_at_mut(start - consumed);
-            let (row_state, tail) = tail.split_at_mut(end - start);
-            (rest, consumed) = (tail, end);
-            Some((i, t_i, row_state))
-        })
-    }
-}
-
-/// The force loop's rows with `N` bonds evaluated together (`LANES` on the portable and AVX2
-/// builds, `WIDE_LANES` on AVX-512).
-#[inline(always)]
-fn rows_portable<const D: usize, const N: usize, M: RowMask>(
-    rows: &Rows<D, M>,
-    terms: &mut [NodeTerms<D>],
-    state: &mut [u8],
-    weight: &impl Fn(f64) -> f64,
-    volume: &impl Fn(usize) -> f64,
-) -> u64 {
-    let mut broken = 0u64;
-    for (i, t_i, row_state) in rows.each_row(terms, state) {
-        let (acc, w, newly_broken, lost) = pmb_row::<D, N, M>(rows, i, row_state, weight, volume);
-        broken += newly_broken;
-        t_i.force = acc;
-        t_i.energy_density = 0.25 * w;
-        t_i.broken_weight += lost;
-    }
-    broken
-}
-
-/// A build of `rows_portable` with `$lanes` bonds together, compiled for `$features`.
-macro_rules! rows_build {
-    ($(#[$doc:meta])* $name:ident, $features:literal, $lanes:expr) => {
-        $(#[$doc])*
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $features)]
-        fn $name<const D: usize, M: RowMask>(
-            rows: &Rows<D, M>,
-            terms: &mut [NodeTerms<D>],
-            state: &mut [u8],
-            weight: &impl Fn(f64) -> f64,
-            volume: &impl Fn(usize) -> f64,
-        ) -> u64 {
-            rows_portable::<D, { $lanes }, M>(rows, terms, state, weight, volume)
-        }
-    };
-}
-
-rows_build!(
-    /// `rows_portable` compiled for AVX2, where the lane loops become 4-wide. No FMA is
-    /// enabled, so the results are bit-identical to the portable code.
-    rows_avx2,
-    "avx,avx2",
-    LANES
-);
-
-rows_build!(
-    /// `rows_portable` with `WIDE_LANES` bonds together, compiled for AVX-512, where the lane
-    /// loops become 8-wide (one square root and one division instruction per 8 bonds). No
-    /// FMA is contracted, so the results are bit-identical to the portable code at 8 lanes;
-    /// against the 4-lane builds they differ in the last bits (the lanes' partial sums are
-    /// added in another order), so a machine with AVX-512 and one without agree to rounding,
-    /// not to the bit. Measured on a Zen 4: the force loop alone 1.16× the AVX2 build (3D,
-    /// 122 bonds per node); a whole `pmb-block-3d` run, setup included, 1.18×
-    /// (docs/results.md).
-    rows_avx512,
-    "avx512f,avx512vl,avx512dq",
-    WIDE_LANES
-);
-
-/// The hand-written force kernels (2D and 3D scenes with one volume): the widest this CPU
-/// runs.
-#[cfg(target_arch = "x86_64")]
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum HandKernelSet {
-    /// 8 lanes (`avx512`); bit-identical to the portable 8-lane loop.
-    Avx512,
-    /// 4 lanes (`avx2`); bit-identical to the portable 4-lane loop.
-    Avx2,
-}
-
-#[cfg(target_arch = "x86_64")]
-fn hand_kernel() -> Option<HandKernelSet> {
-    if crate::simd::avx512_kernels_available() {
-        Some(HandKernelSet::Avx512)
-    } else if crate::simd::avx2() {
-        Some(HandKernelSet::Avx2)
-    } else {
-        None
-    }
-}
-
-/// A hand-written force kernel of one instruction set: one task's rows of the gather loop,
-/// bond weight ω c β V by the const parameters, V = `volume` for every node.
-#[cfg(target_arch = "x86_64")]
-trait HandKernel {
-    /// # Safety
-    /// The kernel's instruction set is available and `D` is 2 or 3.
-    unsafe fn rows<
-        const D: usize,
-        const LINEAR: bool,
-        const BETA: bool,
-        const ENERGY: bool,
-        M: RowMask,
-    >(
-        rows: &Rows<D, M>,
-        terms: &mut [NodeTerms<D>],
-        state: &mut [u8],
-        weight: &BondWeight,
-        volume: f64,
-    ) -> u64;
-}
-
-/// The force loop over all rows with kernel `K` (`Standard::forces_masked` on a 2D or 3D
-/// scene with uniform volumes). Returns the directed bonds broken.
-///
-/// # Safety
-/// `K`'s instruction set is available and `D` is 2 or 3.
-#[cfg(target_arch = "x86_64")]
-unsafe fn hand_forces<K: HandKernel, const D: usize, M: RowMask>(
-    rows: &Rows<D, M>,
-    intact: &mut [u8],
-    terms: &mut [NodeTerms<D>],
-    weight: BondWeight,
-    volume: f64,
-    (linear, beta, energy): (bool, bool, bool),
-) -> u64 {
-    macro_rules! run {
-        ($linear:literal, $beta:literal, $energy:literal) => {
-            split_rows(
-                rows.families,
-                0,
-                terms,
-                intact,
-                &|first: usize, terms: &mut [NodeTerms<D>], state: &mut [u8]| -> u64 {
-                    let block = Rows { first, ..*rows };
-                    // SAFETY: the caller guarantees the instruction set and D.
-                    unsafe {
-                        K::rows::<D, $linear, $beta, $energy, M>(
-                            &block, terms, state, &weight, volume,
-                        )
-                    }
-                },
-            )
-        };
-    }
-    match (linear, beta, energy) {
-        (false, true, true) => run!(false, true, true),
-        (false, false, true) => run!(false, false, true),
-        (true, true, true) => run!(true, true, true),
-        (true, false, true) => run!(true, false, true),
-        (false, true, false) => run!(false, true, false),
-        (false, false, false) => run!(false, false, false),
-        (true, true, false) => run!(true, true, false),
-        (true, false, false) => run!(true, false, false),
-    }
-}
-
-/// Whether the AVX-512 force loop can run here.
-#[cfg(target_arch = "x86_64")]
-fn avx512_detected() -> bool {
-    crate::simd::avx512_f_vl_dq()
-}
-
-/// Bonds evaluated together: the lane loops below are written so the compiler turns them
-/// into SIMD arithmetic (two or four square roots and divisions per instruction).
-pub(crate) const LANES: usize = 4;
-
-/// Bonds evaluated together by the AVX-512 build of the gather loop.
-const WIDE_LANES: usize = 8;
-
-/// For `N` bonds of node i (at `y_i`) to `neighbors`: the offsets y_j − y_i by component
-/// and lane, V'_j, and ‖y_j − y_i‖² (the lane loops of both force loops).
-#[inline(always)]
-pub(crate) fn lane_offsets<const D: usize, const N: usize>(
-    y_i: [f64; D],
-    neighbors: &[u32],
-    positions: &[[f64; D]],
-    volume: &impl Fn(usize) -> f64,
-) -> ([[f64; N]; D], [f64; N], [f64; N]) {
-    let mut d = [[0.0; N]; D];
-    let mut vol = [0.0; N];
-    for l in 0..N {
-        let j = neighbors[l] as usize;
-        let p = positions[j];
-        for k in 0..D {
-            d[k][l] = p[k] - y_i[k];
-        }
-        vol[l] = volume(j);
-    }
-    let mut r2 = [0.0; N];
-    for d_k in &d {
-        for l in 0..N {
-            r2[l] += d_k[l] * d_k[l];
-        }
-    }
-    (d, vol, r2)
-}
-
-/// Node i's row (its bond states `state`): (force density, 4·W_i, bonds broken now). Blocks
-/// of `N` bonds are evaluated branch-free (a broken bond weighs 0), the remainder one by one.
-#[inline(always)]
-fn pmb_row<const D: usize, const N: usize, M: RowMask>(
-    rows: &Rows<D, M>,
-    i: usize,
-    state: &mut [u8],
-    weight: &impl Fn(f64) -> f64,
-    volume: &impl Fn(usize) -> f64,
-) -> ([f64; D], f64, u64, f64) {
-    let (y_i, positions, s0, quadrature) =
-        (rows.positions[i], rows.positions, rows.s0, rows.quadrature);
-    let (neighbors, lengths) = (
-        &rows.families.neighbors[rows.families.range(i)],
-        rows.families.row_lengths(i),
-    );
-    let mut lost = 0.0;
-    let mut acc_lanes = [[0.0; N]; D];
-    let mut w_lanes = [0.0; N];
-    let mut broken = 0u64;
-    let blocked = neighbors.len() / N * N;
-    for ((nb, ln), st) in neighbors[..blocked]
-        .chunks_exact(N)
-        .zip(lengths[..blocked].chunks_exact(N))
-        .zip(state[..blocked].chunks_exact_mut(N))
-    {
-        let (d, vol, r2) = lane_offsets::<D, N>(y_i, nb, positions, volume);
-        let mut scale = [0.0; N];
-        let mut breaks = false;
-        let mut keep = [false; N];
-        for l in 0..N {
-            let r = r2[l].sqrt();
-            let extension = r - ln[l];
-            let alive = st[l] != 0;
-            keep[l] = alive && extension < s0 * ln[l];
-            breaks |= alive != keep[l];
-            // ω c β V_j · s · (y_j − y_i)/‖y_j − y_i‖ with s = extension / length.
-            let s = weight(ln[l]) * vol[l] * extension / (ln[l] * r);
-            scale[l] = if keep[l] { s } else { 0.0 };
-            // Strain energy w β V_j = ½ ω c s² ‖ξ‖ β V_j (2.27), with the force.
-            w_lanes[l] += scale[l] * extension * r;
-        }
-        if breaks {
-            broken += break_lanes(st, &keep, ln, &vol, quadrature, &mut lost);
-        }
-        for k in 0..D {
-            for l in 0..N {
-                acc_lanes[k][l] += scale[l] * d[k][l];
-            }
-        }
-    }
-    let mut acc = [0.0; D];
-    for k in 0..D {
-        acc[k] = acc_lanes[k].iter().sum();
-    }
-    let mut w: f64 = w_lanes.iter().sum();
-    pmb_tail(
-        rows,
-        i,
-        blocked,
-        state,
-        weight,
-        volume,
-        (&mut acc, &mut w, &mut broken, &mut lost),
-    );
-    (acc, w, broken, lost)
-}
-
-/// Marks the lanes whose bond broke in this pass (intact before, not kept), adds their
-/// β V'_j to `lost` one by one (the damage numerator) and returns how many broke.
-#[inline(never)]
-fn break_lanes<const N: usize>(
-    state: &mut [u8],
-    keep: &[bool; N],
-    lengths: &[f64],
-    volumes: &[f64; N],
-    quadrature: &Quadrature,
-    lost: &mut f64,
-) -> u64 {
-    let mut broken = 0;
-    for l in 0..N {
-        if state[l] != 0 && !keep[l] {
-            state[l] = 0;
-            broken += 1;
-            *lost += quadrature.beta(lengths[l]) * volumes[l];
-        }
-    }
-    broken
-}
-
-/// Node i's bonds from its `first`-th on (those left after the blocks of lanes), one by one,
-/// added to `sums` (force density, 4·W_i, bonds broken, Σ β V'_j lost); `state` is the row's.
-#[inline(always)]
-fn pmb_tail<const D: usize, M: RowMask>(
-    rows: &Rows<D, M>,
-    i: usize,
-    first: usize,
-    state: &mut [u8],
-    weight: &impl Fn(f64) -> f64,
-    volume: &impl Fn(usize) -> f64,
-    sums: (&mut [f64; D], &mut f64, &mut u64, &mut f64),
-) {
-    let (acc, w, broken, lost) = sums;
-    let (y_i, positions, s0, quadrature) =
-        (rows.positions[i], rows.positions, rows.s0, rows.quadrature);
-    let neighbors = &rows.families.neighbors[rows.families.range(i)][first..];
-    let lengths = &rows.families.row_lengths(i)[first..];
-    for ((&j, &length), mu) in neighbors.iter().zip(lengths).zip(&mut state[first..]) {
-        if *mu == 0 {
-            continue;
-        }
-        let j = j as usize;
-        let y_j = positions[j];
-        let mut d = [0.0; D];
-        let mut r2 = 0.0;
-        for k in 0..D {
-            d[k] = y_j[k] - y_i[k];
-            r2 += d[k] * d[k];
-        }
-        let r = r2.sqrt();
-        let extension = r - length;
-        if extension >= s0 * length {
-            *mu = 0;
-            *broken += 1;
-            *lost += quadrature.beta(length) * volume(j);
-            continue;
-        }
-        let scale = weight(length) * volume(j) * extension / (length * r);
-        *w += scale * extension * r;
-        for k in 0..D {
-            acc[k] += scale * d[k];
-        }
-    }
-}
-
-fn split_rows<const D: usize, K>(
-    families: &Families,
-    first: usize,
-    terms: &mut [NodeTerms<D>],
-    state: &mut [u8],
-    kernel: &K,
-) -> u64
-where
-    K: Fn(usize, &mut [NodeTerms<D>], &mut [u8]) -> u64 + Sync,
-{
-    if terms.len() <= ROWS_PER_TASK {
-        return kernel(first, terms, state);
-    }
-    let mid = terms.len() / 2;
-    let (terms_a, terms_b) = terms.split_at_mut(mid);
-    let cut = families.offsets[first + mid] - families.offsets[first];
-    let (state_a, state_b) = state.split_at_mut(cut);
-    let (a, b) = rayon::join(
-        || split_rows(families, first, terms_a, state_a, kernel),
-        || split_rows(families, first + mid, terms_b, state_b, kernel),
-    );
-    a + b
 }
 
 #[cfg(test)]
@@ -953,6 +348,7 @@ mod tests {
     use super::*;
     use crate::discretization::grid::Lattice;
     use crate::integrate::lattice_symbol::{LatticeSymbol, on_lattice};
+    use crate::model::pmb::Influence;
     use crate::scene::Solid;
 
     /// A unit-spaced cube lattice of side `side`, perturbed by up to 0.2 spacings (seeded),
@@ -965,321 +361,6 @@ mod tests {
         let lattice = Lattice::<3>::build(&cube, 1.0, [-0.2, 0.2], seed);
         let families = Families::build(&lattice.positions, 3.0);
         (lattice, families)
-    }
-
-    /// The AVX2 build of the force loop, the portable one and any thread count give the same
-    /// bits, breaking included.
-    #[test]
-    fn force_loop_is_bit_identical_across_builds_and_threads() {
-        let (lattice, families) = perturbed_cube(12.0, 5);
-        let law = PmbLaw {
-            micromodulus: 1.0,
-            critical_stretch: 0.01,
-            influence: Influence::Constant,
-            horizon: 3.0,
-        };
-        let positions: Vec<[f64; 3]> = lattice
-            .positions
-            .iter()
-            .map(|x| {
-                [
-                    x[0] * (1.0 + 0.012 * (x[1] / 12.0)),
-                    x[1],
-                    x[2] + 1e-3 * x[0],
-                ]
-            })
-            .collect();
-        let quadrature = Quadrature {
-            spacing: 1.0,
-            horizon: 3.0,
-            volume_correction: true,
-        };
-        let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
-                let mut intact = intact_bonds(families.bond_count());
-                let mut terms = vec![NodeTerms::default(); lattice.len()];
-                let scheme = Standard {
-                    reference: &lattice.positions,
-                    volumes: &lattice.volumes,
-                    uniform_volume: Some(1.0),
-                    families: &families,
-                    law: &law,
-                    quadrature: &quadrature,
-                };
-                let broken = scheme.forces(&positions, &mut intact, &mut terms);
-                (broken, intact, terms)
-            })
-        };
-        let (broken, intact, terms) = run(1);
-        assert!(broken > 0 && broken < families.bond_count() as u64);
-        assert_eq!(run(2), (broken, intact.clone(), terms.clone()));
-
-        let rows = Rows {
-            positions: &positions,
-            families: &families,
-            quadrature: &quadrature,
-            first: 0,
-            s0: law.critical_stretch,
-            skip: None::<&[u8]>,
-        };
-        let weight = |l: f64| quadrature.beta(l);
-        let volume = |_j: usize| 1.0;
-        let fresh = || {
-            (
-                intact_bonds(families.bond_count()),
-                vec![NodeTerms::default(); lattice.len()],
-            )
-        };
-        let mut portable = fresh();
-        let b1 = rows_portable::<3, LANES, u8>(
-            &rows,
-            &mut portable.1,
-            &mut portable.0,
-            &weight,
-            &volume,
-        );
-        let mut portable_wide = fresh();
-        let b8 = rows_portable::<3, WIDE_LANES, u8>(
-            &rows,
-            &mut portable_wide.1,
-            &mut portable_wide.0,
-            &weight,
-            &volume,
-        );
-        // The solver runs 8 lanes where AVX-512 is detected, 4 elsewhere, and matches that
-        // portable loop bit for bit.
-        #[cfg(target_arch = "x86_64")]
-        let solver_is_wide = avx512_detected();
-        #[cfg(not(target_arch = "x86_64"))]
-        let solver_is_wide = false;
-        let (solver_lanes, other) = if solver_is_wide {
-            (&portable_wide, &portable)
-        } else {
-            (&portable, &portable_wide)
-        };
-        assert_eq!(b1, broken);
-        assert_eq!(b8, broken);
-        assert_eq!(*solver_lanes, (intact, terms));
-        // 4 against 8 lanes: the same broken bonds, forces and energies equal to rounding
-        // (the partial sums of ~120 bonds added in another order: a few ulps of the largest
-        // bond term, far below 1e-12 of the largest force).
-        assert_eq!(other.0, solver_lanes.0);
-        let largest = solver_lanes
-            .1
-            .iter()
-            .flat_map(|t| t.force.iter().map(|f| f.abs()))
-            .fold(0.0, f64::max);
-        for (a, b) in other.1.iter().zip(&solver_lanes.1) {
-            for k in 0..3 {
-                assert!((a.force[k] - b.force[k]).abs() <= 1e-12 * largest);
-            }
-            assert!((a.energy_density - b.energy_density).abs() <= 1e-12 * a.energy_density.abs());
-            assert_eq!(a.broken_weight, b.broken_weight);
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            let mut wide = fresh();
-            // SAFETY: AVX2 support was detected just above.
-            let b2 = unsafe { rows_avx2(&rows, &mut wide.1, &mut wide.0, &weight, &volume) };
-            assert_eq!(b2, b1);
-            assert_eq!(wide, portable);
-        }
-        #[cfg(target_arch = "x86_64")]
-        if avx512_detected() {
-            let mut wide = fresh();
-            // SAFETY: AVX-512 support was detected just above.
-            let b2 = unsafe { rows_avx512(&rows, &mut wide.1, &mut wide.0, &weight, &volume) };
-            assert_eq!(b2, b8);
-            assert_eq!(wide, portable_wide);
-        }
-    }
-
-    /// The hand-written kernel this CPU runs (AVX-512 or AVX2; 2D and 3D, uniform volumes)
-    /// gives the portable loop's bits at its lane count (8 or 4) for every influence and
-    /// partial-volume choice, with a spacing and volume other than 1 (so no product by 1
-    /// hides a wrong operand order) and bonds breaking.
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn hand_written_kernel_matches_the_portable_loop_for_every_law() {
-        if hand_kernel().is_none() {
-            return;
-        }
-        let dx = 0.7;
-        let (lattice, _) = perturbed_cube(9.0, 17);
-        let reference: Vec<[f64; 3]> = lattice
-            .positions
-            .iter()
-            .map(|x| x.map(|c| c * dx))
-            .collect();
-        let positions: Vec<[f64; 3]> = reference
-            .iter()
-            .map(|x| {
-                [
-                    x[0] * (1.0 + 0.003 * x[1]),
-                    x[1] - 0.001 * x[2] * x[2],
-                    x[2],
-                ]
-            })
-            .collect();
-        assert_kernel_matches_portable(&reference, &positions, dx, 0.343);
-        let square = Solid::Box {
-            min: vec![0.0; 2],
-            max: vec![17.0; 2],
-        };
-        let plane = Lattice::<2>::build(&square, 1.0, [-0.2, 0.2], 23);
-        let reference: Vec<[f64; 2]> = plane.positions.iter().map(|x| x.map(|c| c * dx)).collect();
-        let positions: Vec<[f64; 2]> = reference
-            .iter()
-            .map(|x| [x[0] * (1.0 + 0.002 * x[1]), x[1] - 0.0008 * x[0] * x[0]])
-            .collect();
-        assert_kernel_matches_portable(&reference, &positions, dx, 0.49);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    fn assert_kernel_matches_portable<const D: usize>(
-        reference: &[[f64; D]],
-        positions: &[[f64; D]],
-        dx: f64,
-        v: f64,
-    ) {
-        let families = Families::build(reference, 3.0 * dx);
-        let volumes = vec![v; reference.len()];
-        let mut compared = 0;
-        for influence in [Influence::Constant, Influence::Linear] {
-            for volume_correction in [true, false] {
-                let law = PmbLaw {
-                    micromodulus: 3.7,
-                    critical_stretch: 0.012,
-                    influence,
-                    horizon: 3.0 * dx,
-                };
-                let quadrature = Quadrature {
-                    spacing: dx,
-                    horizon: 3.0 * dx,
-                    volume_correction,
-                };
-                let scheme = Standard {
-                    reference,
-                    volumes: &volumes,
-                    uniform_volume: Some(v),
-                    families: &families,
-                    law: &law,
-                    quadrature: &quadrature,
-                };
-                let mut kernel = (
-                    intact_bonds(families.bond_count()),
-                    vec![NodeTerms::default(); reference.len()],
-                );
-                let broken = scheme.forces(positions, &mut kernel.0, &mut kernel.1);
-                assert!(
-                    broken > 0 && broken < families.bond_count() as u64 / 2,
-                    "{broken} of {}",
-                    families.bond_count()
-                );
-                let rows = Rows {
-                    positions,
-                    families: &families,
-                    quadrature: &quadrature,
-                    first: 0,
-                    s0: law.critical_stretch,
-                    skip: None::<&[u8]>,
-                };
-                let weight = BondWeight::of(&law, &quadrature);
-                let mut portable = (
-                    intact_bonds(families.bond_count()),
-                    vec![NodeTerms::default(); reference.len()],
-                );
-                let unit = |_j: usize| 1.0;
-                let wide = hand_kernel() == Some(HandKernelSet::Avx512);
-                macro_rules! portable {
-                    ($linear:literal, $beta:literal) => {{
-                        let weight = |l| weight.at::<$linear, $beta>(l) * v;
-                        let (state, terms) = (&mut portable.0, &mut portable.1);
-                        if wide {
-                            rows_portable::<D, WIDE_LANES, u8>(&rows, terms, state, &weight, &unit)
-                        } else {
-                            rows_portable::<D, LANES, u8>(&rows, terms, state, &weight, &unit)
-                        }
-                    }};
-                }
-                let portable_broken = match (influence, volume_correction) {
-                    (Influence::Constant, true) => portable!(false, true),
-                    (Influence::Constant, false) => portable!(false, false),
-                    (Influence::Linear, true) => portable!(true, true),
-                    (Influence::Linear, false) => portable!(true, false),
-                };
-                assert_eq!(portable_broken, broken);
-                assert_eq!(portable, kernel, "{influence:?}, β {volume_correction}");
-                // Without the energy sum: the same forces and bonds, energies left alone.
-                let mut quiet = (
-                    intact_bonds(families.bond_count()),
-                    vec![NodeTerms::default(); reference.len()],
-                );
-                let quiet_broken =
-                    scheme.forces_masked::<u8>(positions, &mut quiet.0, &mut quiet.1, None, false);
-                assert_eq!((quiet_broken, &quiet.0), (broken, &kernel.0));
-                for (q, k) in quiet.1.iter().zip(&kernel.1) {
-                    assert_eq!((q.force, q.broken_weight), (k.force, k.broken_weight));
-                    assert_eq!(q.energy_density, 0.0);
-                }
-                compared += 1;
-            }
-        }
-        assert_eq!(compared, 4);
-    }
-
-    /// The AVX2 linearized row (vector gathers) gives the portable 4-lane loop's bits, in 2D
-    /// and 3D, with broken bonds and a displacement field without symmetry.
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn vector_linearized_rows_match_the_portable_loop() {
-        if !crate::simd::avx2() {
-            return;
-        }
-        fn compare<const D: usize>(reference: &[[f64; D]], radius: f64) {
-            let families = Families::build(reference, radius);
-            let coefficients: Vec<f64> = (0..families.bond_count())
-                .map(|b| 1.0 + (b % 7) as f64 * 0.37)
-                .collect();
-            let states: Vec<u8> = (0..families.bond_count())
-                .map(|b| u8::from(b % 5 != 3))
-                .collect();
-            let u: Vec<[f64; D]> = (0..reference.len())
-                .map(|i| std::array::from_fn(|k| ((i * (k + 3)) as f64 * 0.618).sin()))
-                .collect();
-            for i in 0..reference.len() {
-                let range = families.range(i);
-                let row = LinearizedRow {
-                    i,
-                    neighbors: &families.neighbors[range.clone()],
-                    states: &states[range.clone()],
-                    coefficients: &coefficients[range],
-                };
-                let portable = linearized_row::<D, LANES>(&row, reference, &u);
-                // SAFETY: AVX2 was detected above; D is 2 or 3.
-                let vector = unsafe { avx2::linearized_row(&row, reference, &u) };
-                assert_eq!(
-                    portable.map(f64::to_bits),
-                    vector.map(f64::to_bits),
-                    "row {i}"
-                );
-                assert!(portable.iter().any(|&x| x != 0.0));
-            }
-        }
-        let (lattice, _) = perturbed_cube(7.0, 5);
-        compare(&lattice.positions, 3.0);
-        let square = Solid::Box {
-            min: vec![0.0; 2],
-            max: vec![12.0; 2],
-        };
-        compare(
-            &Lattice::<2>::build(&square, 1.0, [-0.2, 0.2], 9).positions,
-            3.0,
-        );
     }
 
     /// On a lattice with a cut, the symbol's bound (from above) and Lanczos on the operator
