@@ -41,15 +41,6 @@ const ALLOWED_CIRCLES: &[(&[&str], &str)] = &[
         "the hand-written kernels take the row types and tails from the file that dispatches \
          to them; to go with the restructuring of the schemes",
     ),
-    (
-        &[
-            "crates/peridyn-core/src/sim/dual_horizon.rs",
-            "crates/peridyn-core/src/sim/dynamics.rs",
-            "crates/peridyn-core/src/sim/mod.rs",
-        ],
-        "the builder's helpers (`add_initial_velocity`, …) are called by the simulations the \
-         builder builds; to go with the restructuring of sim/",
-    ),
 ];
 
 /// The repository's root.

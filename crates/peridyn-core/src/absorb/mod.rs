@@ -198,7 +198,7 @@ fn cloud<const D: usize>(
 /// with `spec.thinning`, a node whose ‖V‖ or cond(M) exceeds its limit gets its cloud thinned
 /// (density halved along the axes, up to 3 times; thesis Fig. 4.23).
 #[allow(clippy::too_many_arguments)]
-pub fn scalar_layer<const D: usize>(
+pub fn fit_scalar_layer<const D: usize>(
     spec: &AbsorbingSpec,
     nodes: &[(u32, [f64; D])],
     positions: &[[f64; D]],
@@ -225,7 +225,7 @@ pub fn scalar_layer<const D: usize>(
 /// pressure and shear mode (seed-thesis-ch4-5 erratum 14: both, so 2 n_φ n_k columns), fitted
 /// on two levels for u and u̇ ((4.162)–(4.166)).
 #[allow(clippy::too_many_arguments)]
-pub fn bond_layer<const D: usize>(
+pub fn fit_bond_layer<const D: usize>(
     spec: &AbsorbingSpec,
     nodes: &[(u32, [f64; D])],
     positions: &[[f64; D]],

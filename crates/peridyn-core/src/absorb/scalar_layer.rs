@@ -182,10 +182,10 @@ impl<const D: usize> Absorber<D> {
         let (spec, nodes, spacing) = (&self.spec, &self.nodes, self.spacing);
         self.layer = match (spec.method, &self.far) {
             (AbsorbingMethod::Modes, FarField::Scalar { lattice, far }) => {
-                absorb::scalar_layer(spec, nodes, positions, families, lattice, *far, spacing, dt)
+                absorb::fit_scalar_layer(spec, nodes, positions, families, lattice, *far, spacing, dt)
             }
             (AbsorbingMethod::Modes, FarField::Bond(far)) => {
-                absorb::bond_layer(spec, nodes, positions, families, far, spacing, dt)
+                absorb::fit_bond_layer(spec, nodes, positions, families, far, spacing, dt)
             }
             (AbsorbingMethod::FirstOrder, far) => {
                 let clouds = absorb::Clouds {

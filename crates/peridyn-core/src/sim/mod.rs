@@ -4,16 +4,18 @@
 
 pub mod dual_horizon;
 pub mod dynamics;
+mod initial_velocity;
 pub mod nernst_planck;
 pub mod scalar;
-mod wave;
 
 pub use dual_horizon::DualHorizonSimulation;
 pub use dynamics::DynamicSimulation;
 pub use nernst_planck::NernstPlanckSimulation;
-pub use scalar::ScalarSimulation;
+pub use scalar::{DiffusionSimulation, StaticSimulation, WaveSimulation};
 
-use crate::scene::{InitialVelocity, Physics, Scene, SceneError};
+pub(crate) use initial_velocity::add_initial_velocity;
+
+use crate::scene::{Physics, Scene, SceneError};
 use crate::solver::Stepper;
 
 /// Builds the simulation of a scene, in its dimension and for its physics.
@@ -33,46 +35,14 @@ pub fn build(scene: &Scene) -> Result<Box<dyn Stepper>, SceneError> {
         (Physics::NernstPlanck, 1) => boxed(NernstPlanckSimulation::<1>::new(scene)),
         (Physics::NernstPlanck, 2) => boxed(NernstPlanckSimulation::<2>::new(scene)),
         (Physics::NernstPlanck, _) => boxed(NernstPlanckSimulation::<3>::new(scene)),
-        (_, 1) => boxed(ScalarSimulation::<1>::new(scene)),
-        (_, 2) => boxed(ScalarSimulation::<2>::new(scene)),
-        (_, _) => boxed(ScalarSimulation::<3>::new(scene)),
-    }
-}
-
-/// Adds the scene's `[[initial.velocity]]` fields at the reference positions.
-pub(crate) fn add_initial_velocity<const D: usize>(
-    scene: &Scene,
-    reference: &[[f64; D]],
-    velocities: &mut [[f64; D]],
-) {
-    let (lo, hi) = scene.solid.bounds();
-    for field in &scene.initial_velocity {
-        for (v, x) in velocities.iter_mut().zip(reference) {
-            match *field {
-                InitialVelocity::Uniform(ref value) => {
-                    for k in 0..D {
-                        v[k] += value[k];
-                    }
-                }
-                InitialVelocity::Ramp {
-                    component,
-                    axis,
-                    from,
-                    to,
-                } => {
-                    let t = (x[axis] - lo[axis]) / (hi[axis] - lo[axis]);
-                    v[component] += from + t * (to - from);
-                }
-                InitialVelocity::Sine {
-                    component,
-                    axis,
-                    amplitude,
-                    modes,
-                } => {
-                    let t = (x[axis] - lo[axis]) / (hi[axis] - lo[axis]);
-                    v[component] += amplitude * (std::f64::consts::PI * modes * t).sin();
-                }
-            }
-        }
+        (Physics::Static, 1) => boxed(StaticSimulation::<1>::new(scene)),
+        (Physics::Static, 2) => boxed(StaticSimulation::<2>::new(scene)),
+        (Physics::Static, _) => boxed(StaticSimulation::<3>::new(scene)),
+        (Physics::ScalarWave, 1) => boxed(WaveSimulation::<1>::new(scene)),
+        (Physics::ScalarWave, 2) => boxed(WaveSimulation::<2>::new(scene)),
+        (Physics::ScalarWave, _) => boxed(WaveSimulation::<3>::new(scene)),
+        (Physics::Diffusion | Physics::Corrosion, 1) => boxed(DiffusionSimulation::<1>::new(scene)),
+        (Physics::Diffusion | Physics::Corrosion, 2) => boxed(DiffusionSimulation::<2>::new(scene)),
+        (Physics::Diffusion | Physics::Corrosion, _) => boxed(DiffusionSimulation::<3>::new(scene)),
     }
 }
