@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerates the speed-against-error results shown in docs/results.md (screenshots/sweeps/).
+# Regenerates the speed-against-error results shown in docs/validation.md (screenshots/sweeps/).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo build --release

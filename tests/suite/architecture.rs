@@ -22,26 +22,7 @@ use reader::{Crate, Tree, words};
 /// Circles that are known and left for now, each as its files (relative to the repository),
 /// with the reason. An entry that is no longer a circle fails the test, so the list only
 /// shrinks.
-const ALLOWED_CIRCLES: &[(&[&str], &str)] = &[
-    (
-        &[
-            "crates/peridyn-core/src/adapt/bonds.rs",
-            "crates/peridyn-core/src/adapt/bonds/avx2.rs",
-            "crates/peridyn-core/src/adapt/bonds/avx512.rs",
-        ],
-        "the hand-written kernels take the portable scan's helpers from the file that \
-         dispatches to them; to go with the restructuring of adapt/",
-    ),
-    (
-        &[
-            "crates/peridyn-core/src/scheme/standard.rs",
-            "crates/peridyn-core/src/scheme/standard/avx2.rs",
-            "crates/peridyn-core/src/scheme/standard/avx512.rs",
-        ],
-        "the hand-written kernels take the row types and tails from the file that dispatches \
-         to them; to go with the restructuring of the schemes",
-    ),
-];
+const ALLOWED_CIRCLES: &[(&[&str], &str)] = &[];
 
 /// The repository's root.
 fn root() -> &'static Path {

@@ -679,7 +679,10 @@ fn the_simd_choice_is_checked_and_one_width_gives_one_result() {
     let bad = run("sse9");
     assert_eq!(bad.status.code(), Some(2));
     let err = String::from_utf8_lossy(&bad.stderr);
-    assert!(err.contains("PERIDYN_SIMD") && err.contains("portable8"), "{err}");
+    assert!(
+        err.contains("PERIDYN_SIMD") && err.contains("portable8"),
+        "{err}"
+    );
     let hashes = |simd: Simd| {
         let out = run(simd.name());
         if !simd.runs_here() {
@@ -688,7 +691,10 @@ fn the_simd_choice_is_checked_and_one_width_gives_one_result() {
         }
         let stdout = String::from_utf8_lossy(&out.stdout).to_string();
         assert!(out.status.success(), "{stdout}");
-        stdout.lines().find(|l| l.contains("field hashes")).map(String::from)
+        stdout
+            .lines()
+            .find(|l| l.contains("field hashes"))
+            .map(String::from)
     };
     let (four, eight) = (hashes(Simd::Portable), hashes(Simd::Portable8));
     assert!(four.is_some() && four != eight);

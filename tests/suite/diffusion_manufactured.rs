@@ -7,7 +7,7 @@ use peridyn::runner::{self, NullSink};
 use peridyn::scene::reference::{pd_of_quartic, quartic};
 use peridyn::scene::{Scene, SchemeKind};
 use peridyn::sim;
-use peridyn::sim::ScalarSimulation;
+use peridyn::sim::DiffusionSimulation;
 use peridyn::solver::SimError;
 
 const PRESET: &str = "diffusion-2d-manufactured";
@@ -18,7 +18,7 @@ fn wls4_reproduces_the_quartic_operator() {
     for variant in [None, Some("perturbed")] {
         let scene =
             Scene::load_with(PRESET, variant, &["discretization.scheme=wls-4".into()]).unwrap();
-        let sim = ScalarSimulation::<2>::new(&scene).unwrap();
+        let sim = DiffusionSimulation::<2>::new(&scene).unwrap();
         let p: Vec<f64> = sim.positions().iter().map(|x| quartic(x)).collect();
         let mut out = vec![f64::NAN; p.len()];
         sim.operator().apply(&p, &mut out);
@@ -141,7 +141,7 @@ fn orbit_stencil_keeps_the_manufactured_operator_error() {
     use peridyn::scheme::wls::{self, Basis, Collocation};
     for variant in [None, Some("perturbed"), Some("m4"), Some("m4-perturbed")] {
         let scene = Scene::load(PRESET, variant).unwrap();
-        let sim = ScalarSimulation::<2>::new(&scene).unwrap();
+        let sim = DiffusionSimulation::<2>::new(&scene).unwrap();
         let positions = sim.positions();
         let rows = sim.operator().rows.clone();
         let radius = family::search_radius(scene.family_radius, scene.horizon, scene.spacing);

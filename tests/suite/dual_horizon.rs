@@ -423,7 +423,7 @@ fn rigid_motions_across_a_size_change_give_no_force() {
     assert!(interior <= 1e-9 * scale, "interior {interior}");
 }
 
-/// Where the strain field's force at a size change comes from (docs/results.md, session 14):
+/// Where the strain field's force at a size change comes from (docs/validation.md):
 /// under a homogeneous strain the reactions k receives from its dual horizon H'_k are bonds
 /// owned by particles with their own horizon's constants. In the continuum each side's half
 /// of H'_k gives a force ∝ c(δ) δ² ∝ 1/δ, so a horizon jump δ_f ≠ δ_c leaves a net force
@@ -643,7 +643,7 @@ fn kalthoff_winkler_dh_adaptive_angles_follow_the_fine_run() {
     }
 }
 
-/// Exploration and the measurements of docs/results.md: runs PRESET (default crack-opening),
+/// Exploration and the measurements of docs/validation.md: runs PRESET (default crack-opening),
 /// variant PRESET_VARIANT (default small; empty: the base), overrides SET (separated by `;`),
 /// printing the ADR history every EVERY steps and the final frame's figures.
 #[test]

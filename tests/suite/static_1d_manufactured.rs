@@ -125,7 +125,7 @@ const DELTA_SPACINGS: [f64; 6] = [
 /// scheme of the papers (β = 1) does not: its error grows, then stalls at ≈ 9 % (its discrete
 /// second moment is m(m+1)/2 Δx², 1/m too large). With β (3.2) at integer m the 1D quadrature
 /// of the second moment is exact and it converges at second order — not what the thesis
-/// reports, stated in docs/results.md.
+/// reports, stated in docs/validation.md.
 #[test]
 fn delta_convergence() {
     let rows = sweep(Some("delta"), &[], &DELTA_SPACINGS, &ALL);

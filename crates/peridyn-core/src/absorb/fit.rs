@@ -20,7 +20,7 @@ pub struct Fit {
 /// How the pseudo-inverse treats small singular values σ (relative to σ_max): dropped below
 /// `cutoff` (LAPACK's RCOND, seed-thesis-ch4-5 §3.7), and with `tikhonov` = λ > 0 the kept ones
 /// inverted as σ/(σ² + (λ σ_max)²) instead of 1/σ (Tikhonov's filter factors: a smooth
-/// roll-off where the cut-off is a step; not in the thesis, docs/results.md "S10's long run").
+/// roll-off where the cut-off is a step; not in the thesis, docs/validation.md "S10's long run").
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pseudoinverse {
     pub cutoff: f64,

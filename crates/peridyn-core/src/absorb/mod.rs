@@ -141,7 +141,7 @@ pub fn scalar_modes<const D: usize>(
     }
     // The rest states: k = 0 has s = 0 and, damped, s = −2d ((4.53) with ω̃ = ±i d). No
     // outgoing mode reproduces them exactly, and a layer whose weights do not sum to one makes
-    // a uniform offset (the 2D wave's slowly decaying tail) grow (docs/results.md).
+    // a uniform offset (the 2D wave's slowly decaying tail) grow (docs/validation.md).
     if spec.rest_modes {
         let rest = |s: f64| Mode {
             wave_vector: [Complex::new(0.0, 0.0); D],

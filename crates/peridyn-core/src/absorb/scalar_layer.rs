@@ -39,7 +39,7 @@ enum Source {
 
 /// The layer's selective filter (`absorbing.filter` = ε; not in the thesis). The fitted update
 /// amplifies a lattice sawtooth (k ≈ π/Δx, no group velocity) outwards ring by ring at the
-/// lattice-oblique angles of a disc (docs/results.md, "2D scalar layer, long runs"); after each
+/// lattice-oblique angles of a disc (docs/validation.md, "2D scalar layer, long runs"); after each
 /// overwrite every absorbing node becomes ũ_a = (1 − ε) u_a + ε ū_a, ū_a the mean of its lattice
 /// neighbours (within 1.01 Δx). A convex combination: it never raises max |u|. On a 2D lattice
 /// it multiplies a mode by 1 − ε (1 − (cos k_xΔx + cos k_yΔx)/2): the checkerboard by 1 − 2ε,

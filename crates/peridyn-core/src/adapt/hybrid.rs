@@ -53,7 +53,7 @@ impl std::fmt::Display for SwitchEvent {
 
 /// An epoch (every slack refreshed, or kept less the motion bound) follows a filtered check
 /// that flagged more than 1/EPOCH_SHARE of the checked nodes. Measured on Kalthoff–Winkler
-/// medium-fast at 0.7 of its stable step (docs/results.md), before epochs kept slacks: 2 → 4 →
+/// medium-fast at 0.7 of its stable step (docs/validation.md), before epochs kept slacks: 2 → 4 →
 /// 8 → 16 gave 2.0–2.3, 1.55–1.61, 1.46–1.63, 1.52–1.56 s of switching. Since epochs keep
 /// quiet nodes' slacks they are cheaper, and more frequent ones pay (session 29, the paper
 /// grid's `hybrid` at 0.7 of its step, bonds visited and switching time): 4: 6.28·10⁹, 9.3 s;

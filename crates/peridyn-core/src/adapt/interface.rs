@@ -1,4 +1,4 @@
-//! Damping at the hybrid's Ω_s/Ω_w interface (not in the papers; issue 14, docs/results.md "The
+//! Damping at the hybrid's Ω_s/Ω_w interface (not in the papers; docs/validation.md "The
 //! hybrid's coupling is unstable").
 //!
 //! The hybrid couples the two schemes row by row (seed-004 §4.3: an Ω_s node sums PD bond forces
@@ -22,7 +22,7 @@
 //! r · 64 = 1.79 in 2D; r is clamped to 1.8 / λ² (the same 90 % of the limit) wherever κ and Δt
 //! would go past it (a larger Δt, or 3D).
 //! (A Laplacian damping r L D would take O(r (kΔx)²) from smooth waves.) Measured on a free
-//! plate ringing with a smooth pulse: 5–12 % of its energy in 160 µs (docs/results.md).
+//! plate ringing with a smooth pulse: 5–12 % of its energy in 160 µs (docs/validation.md).
 //! Not handled: a lattice pair across a crack is still damped (cracks stay ≥ δ inside Ω_s
 //! because switching moves H_i ∪ H_j of every critical bond, and the band reaches δ/2 into it).
 

@@ -396,7 +396,7 @@ fn cross2(o: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
 /// other end is strictly on one side (so nodes placed on a crack line are cut from one side).
 ///
 /// A bond through one of the crack's end points: see `CrackEnds` (crack-opening `coarse` at
-/// a = 25 mm opens 25.52 µm with those bonds cut, 24.61 µm without; docs/results.md, "Crack
+/// a = 25 mm opens 25.52 µm with those bonds cut, 24.61 µm without; docs/validation.md, "Crack
 /// opening: the tip's tie bonds").
 fn segments_cross(a: [f64; 2], b: [f64; 2], p: [f64; 2], q: [f64; 2], ends: CrackEnds) -> bool {
     let d1 = cross2(p, q, a);

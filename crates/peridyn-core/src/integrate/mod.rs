@@ -1,6 +1,7 @@
 //! Time integrators and stable-step estimates.
 
 pub mod adr;
+pub mod euler;
 pub mod lattice_symbol;
 pub mod linear;
 pub mod newton;

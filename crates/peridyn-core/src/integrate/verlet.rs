@@ -1,12 +1,13 @@
 //! Velocity-Verlet, thesis (3.5)–(3.6), (3.9): half kick, drift, force, half kick — the one
 //! explicit driver of every second-order physics (elastodynamics, dual-horizon OSB, scalar
-//! waves). [`step`] owns the sequence, the stage timers and the unstable-step stop; the body
-//! supplies its kick-drift and constraints ([`VerletBody`]), its scheme the forces and the
-//! second kick ([`ForceTerms`]), and plug-ins ([`Adaptation`]) run between the stages.
+//! waves). [`step`] owns the sequence, the stage timers and the stop after a step the body
+//! judges failed; the body supplies its kick-drift, constraints and stop rule
+//! ([`VerletBody`]), its scheme the forces and the second kick ([`ForceTerms`]), and plug-ins
+//! ([`Adaptation`]) run between the stages.
 
 use rayon::prelude::*;
 
-use crate::solver::adaptation::{Adaptation, Tick};
+use crate::solver::adaptation::{self, Adaptation, Tick};
 use crate::solver::{Lap, RunState, SimError, Stages};
 
 /// What a velocity-Verlet body supplies to [`step`].
@@ -15,8 +16,16 @@ pub trait VerletBody {
     fn kick_drift(&mut self, dt: f64);
     /// Held velocities and displacements, after the second half kick.
     fn constraints(&mut self);
-    /// A step stops the run when its largest motion max |u̇| Δt exceeds half this length.
-    fn blowup_length(&self) -> f64;
+    /// A step stops the run when its largest motion max |u̇| Δt exceeds half this length (the
+    /// default [`Self::stop`]; a body with a stop rule of its own needs none).
+    fn blowup_length(&self) -> f64 {
+        f64::INFINITY
+    }
+    /// The error that stops the run after step `tick`, from the `measure` its kick returned:
+    /// by default the unstable-step stop on the largest squared speed ([`unstable`]).
+    fn stop(&self, measure: f64, tick: Tick) -> Option<SimError> {
+        unstable(measure, self.blowup_length(), tick)
+    }
 }
 
 /// How a body's forces are evaluated (its scheme), and the second half kick they drive. A
@@ -25,8 +34,9 @@ pub trait ForceTerms<B>: Adaptation<B> {
     /// Forces at the drifted positions; strain-energy densities too where `energy` is set (a
     /// frame follows the step).
     fn forces(&mut self, body: &mut B, energy: bool);
-    /// ü from the forces and the second half kick u̇ += (Δt/2) ü; returns the largest squared
-    /// speed (NaN if any is NaN: a blow-up check must see it).
+    /// ü from the forces and the second half kick u̇ += (Δt/2) ü; returns the measure the
+    /// body's stop rule judges: for a moving body the largest squared speed (NaN if any is
+    /// NaN: a blow-up check must see it).
     fn kick(&mut self, body: &mut B, dt: f64) -> f64;
 }
 
@@ -41,11 +51,7 @@ pub fn stage_names<B: 'static>(
     terms: &dyn ForceTerms<B>,
     plugins: &[Box<dyn Adaptation<B>>],
 ) -> Vec<&'static str> {
-    let named: Vec<&'static str> = terms
-        .stage()
-        .into_iter()
-        .chain(plugins.iter().filter_map(|p| p.stage()))
-        .collect();
+    let named = adaptation::named_stages(terms, plugins);
     let mut names = vec![KICK_DRIFT];
     names.extend(named.iter().filter(|&&n| n == "switching"));
     names.extend([FORCES, KICK, CONSTRAINTS]);
@@ -59,8 +65,8 @@ pub fn stage_names<B: 'static>(
 
 /// One velocity-Verlet step of `body`: hooks before the step, kick-drift, hooks on the moved
 /// body, forces, second kick, damping hooks, constraints and their hooks, the step's closing
-/// hooks; then the clock advances, and a step whose largest motion exceeds half the body's
-/// blow-up length (or is NaN) stops the run.
+/// hooks; then the clock advances, and a step the body's stop rule judges failed (by default
+/// one whose largest motion exceeds half the body's blow-up length, or is NaN) stops the run.
 pub fn step<B: VerletBody + 'static>(
     body: &mut B,
     terms: &mut dyn ForceTerms<B>,
@@ -73,17 +79,17 @@ pub fn step<B: VerletBody + 'static>(
     let at = |stages: &Stages, name| stages.index(name).unwrap_or(0);
     let (kick_drift, kick) = (at(stages, KICK_DRIFT), at(stages, KICK));
     let mut lap = Lap::start();
-    each(terms, plugins, stages, &mut lap, kick_drift, |p| {
+    adaptation::each(terms, plugins, stages, &mut lap, kick_drift, |p| {
         p.before_step(body, tick)
     });
     body.kick_drift(tick.dt);
     lap.charge(stages, kick_drift);
-    each(terms, plugins, stages, &mut lap, kick_drift, |p| {
+    adaptation::each(terms, plugins, stages, &mut lap, kick_drift, |p| {
         p.after_move(body, tick)
     });
     terms.forces(body, energy);
     lap.charge(stages, at(stages, FORCES));
-    let max_speed2 = terms.kick(body, tick.dt);
+    let measure = terms.kick(body, tick.dt);
     lap.charge(stages, kick);
     terms.damp(body, tick);
     for p in plugins.iter_mut() {
@@ -93,45 +99,32 @@ pub fn step<B: VerletBody + 'static>(
     body.constraints();
     let constraints = at(stages, CONSTRAINTS);
     lap.charge(stages, constraints);
-    each(terms, plugins, stages, &mut lap, constraints, |p| {
+    adaptation::each(terms, plugins, stages, &mut lap, constraints, |p| {
         p.after_constraints(body, tick)
     });
-    each(terms, plugins, stages, &mut lap, constraints, |p| {
+    adaptation::each(terms, plugins, stages, &mut lap, constraints, |p| {
         p.after_step(body, tick)
     });
     run.clock.advance();
-    let max_speed = max_speed2.sqrt();
-    if max_speed.is_nan() || max_speed * tick.dt > 0.5 * body.blowup_length() {
-        return Err(SimError::Unstable {
-            step: run.clock.step(),
-            time: run.clock.time(),
-            max_speed,
-            dt: tick.dt,
-            stable_dt: run.stable.sharp,
-        });
+    match body.stop(measure, tick) {
+        Some(error) => Err(error),
+        None => Ok(()),
     }
-    Ok(())
 }
 
-/// Runs `hook` on the scheme and then each plug-in, timing each in its own stage (`default`
-/// for those that name none).
-fn each<B: 'static>(
-    terms: &mut dyn ForceTerms<B>,
-    plugins: &mut [Box<dyn Adaptation<B>>],
-    stages: &mut Stages,
-    lap: &mut Lap,
-    default: usize,
-    mut hook: impl FnMut(&mut dyn Adaptation<B>),
-) {
-    let mut timed = |p: &mut dyn Adaptation<B>| {
-        let stage = p.stage().and_then(|s| stages.index(s)).unwrap_or(default);
-        hook(p);
-        lap.charge(stages, stage);
-    };
-    timed(terms);
-    for p in plugins.iter_mut() {
-        timed(&mut **p);
-    }
+/// The unstable-step stop: a step whose largest motion max |u̇| Δt (`max_speed2` = max |u̇|²)
+/// exceeds half of `blowup_length`, or is NaN.
+pub fn unstable(max_speed2: f64, blowup_length: f64, tick: Tick) -> Option<SimError> {
+    let max_speed = max_speed2.sqrt();
+    (max_speed.is_nan() || max_speed * tick.dt > 0.5 * blowup_length).then_some(
+        SimError::Unstable {
+            step: tick.step,
+            time: tick.time,
+            max_speed,
+            dt: tick.dt,
+            stable_dt: tick.stable_dt,
+        },
+    )
 }
 
 /// u̇ += (Δt/2) ü.

@@ -137,7 +137,7 @@ pub(super) fn hybrid(
     }))
 }
 
-/// κ of the hybrid's interface damping (`adapt::interface`; docs/results.md).
+/// κ of the hybrid's interface damping (`adapt::interface`; docs/validation.md).
 const DEFAULT_INTERFACE_DAMPING: f64 = 0.02;
 
 /// The collocation fields of one preset table (`hybrid` for Ω_w, `multigrid` for a WLS coarse

@@ -7,7 +7,7 @@
 
 use rayon::prelude::*;
 
-use crate::discretization::{Families, NodeValue, Quadrature, RowValues};
+use crate::discretization::{Families, Quadrature, RowValues};
 use crate::model::diffusion::DiffusionKernel;
 use crate::model::pmb::{PmbLaw, influence};
 use crate::scheme::{RowMask, ScalarOperator};
@@ -15,40 +15,11 @@ use crate::simd::Simd;
 
 mod force;
 mod linearized;
+mod terms;
 
 use force::{Law, PerNode, Rows, Uniform, pmb_forces};
 use linearized::{LinearizedRow, RowLoop};
-
-/// What the force loop produces per node.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[repr(C)]
-pub struct NodeTerms<const D: usize> {
-    /// Force density (N/m³).
-    pub force: [f64; D],
-    /// Strain-energy density W_i over the intact bonds (J/m³).
-    pub energy_density: f64,
-    /// Σ β V'_j over the node's broken bonds, V' = 1 where all volumes are equal (the damage
-    /// numerator, kept up to date as bonds break).
-    pub broken_weight: f64,
-}
-
-impl<const D: usize> NodeValue for NodeTerms<D> {
-    const EMPTY: Self = NodeTerms {
-        force: [0.0; D],
-        energy_density: 0.0,
-        broken_weight: 0.0,
-    };
-}
-
-impl<const D: usize> Default for NodeTerms<D> {
-    fn default() -> Self {
-        NodeTerms {
-            force: [0.0; D],
-            energy_density: 0.0,
-            broken_weight: 0.0,
-        }
-    }
-}
+pub use terms::NodeTerms;
 
 /// The standard scheme over one discretization: what every bond sum needs, borrowed from the
 /// simulation that owns it.

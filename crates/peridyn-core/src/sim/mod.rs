@@ -7,12 +7,11 @@ pub mod dynamics;
 mod initial;
 pub mod nernst_planck;
 pub mod scalar;
-mod wave;
 
 pub use dual_horizon::DualHorizonSimulation;
 pub use dynamics::DynamicSimulation;
 pub use nernst_planck::NernstPlanckSimulation;
-pub use scalar::ScalarSimulation;
+pub use scalar::{DiffusionSimulation, StaticSimulation, WaveSimulation};
 
 use crate::scene::{Physics, Scene, SceneError};
 use crate::solver::Stepper;
@@ -34,8 +33,14 @@ pub fn build(scene: &Scene) -> Result<Box<dyn Stepper>, SceneError> {
         (Physics::NernstPlanck, 1) => boxed(NernstPlanckSimulation::<1>::new(scene)),
         (Physics::NernstPlanck, 2) => boxed(NernstPlanckSimulation::<2>::new(scene)),
         (Physics::NernstPlanck, _) => boxed(NernstPlanckSimulation::<3>::new(scene)),
-        (_, 1) => boxed(ScalarSimulation::<1>::new(scene)),
-        (_, 2) => boxed(ScalarSimulation::<2>::new(scene)),
-        (_, _) => boxed(ScalarSimulation::<3>::new(scene)),
+        (Physics::Static, 1) => boxed(StaticSimulation::<1>::new(scene)),
+        (Physics::Static, 2) => boxed(StaticSimulation::<2>::new(scene)),
+        (Physics::Static, _) => boxed(StaticSimulation::<3>::new(scene)),
+        (Physics::ScalarWave, 1) => boxed(WaveSimulation::<1>::new(scene)),
+        (Physics::ScalarWave, 2) => boxed(WaveSimulation::<2>::new(scene)),
+        (Physics::ScalarWave, _) => boxed(WaveSimulation::<3>::new(scene)),
+        (Physics::Diffusion | Physics::Corrosion, 1) => boxed(DiffusionSimulation::<1>::new(scene)),
+        (Physics::Diffusion | Physics::Corrosion, 2) => boxed(DiffusionSimulation::<2>::new(scene)),
+        (Physics::Diffusion | Physics::Corrosion, _) => boxed(DiffusionSimulation::<3>::new(scene)),
     }
 }

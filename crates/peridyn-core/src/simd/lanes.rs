@@ -6,6 +6,15 @@
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
+/// A loop written once over a lane type: `Simd::run` calls `run` with the lane type of the
+/// chosen implementation, inside a function compiled for its instruction set. `run` must
+/// be `#[inline(always)]` (and so must what it calls with lanes), so that the lane
+/// operations are compiled there.
+pub trait LaneLoop {
+    type Output;
+    fn run<L: Lanes>(self) -> Self::Output;
+}
+
 /// N doubles processed together.
 pub trait Lanes:
     Copy

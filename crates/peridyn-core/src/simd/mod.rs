@@ -28,17 +28,8 @@ mod avx512;
 
 use std::sync::OnceLock;
 
-pub use lanes::Lanes;
+pub use lanes::{LaneLoop, Lanes};
 pub use portable::Portable;
-
-/// A loop written once over a lane type: `Simd::run` calls `run` with the lane type of the
-/// chosen implementation, inside a function compiled for its instruction set. `run` must
-/// be `#[inline(always)]` (and so must what it calls with lanes), so that the lane
-/// operations are compiled there.
-pub trait LaneLoop {
-    type Output;
-    fn run<L: Lanes>(self) -> Self::Output;
-}
 
 /// A lane implementation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -5,7 +5,7 @@
 //! list of them; adding one adds no branch to the simulation or the driver.
 
 use crate::frame::Frame;
-use crate::solver::{Clock, Param, State};
+use crate::solver::{Clock, Lap, Param, Stages, State};
 
 /// The step a hook runs in: the step being completed (n + 1), its start t^n and end t^{n+1},
 /// the step size, and the run's stable step (damped bands set their rate from it).
@@ -96,6 +96,10 @@ const PLUG_IN_SECTIONS: &[(&str, &str)] = &[
         "absorbing/previous_displacement",
         "the checkpoint is of a scene with an absorbing layer; this one has none",
     ),
+    (
+        "phase",
+        "the checkpoint is of a corrosion scene; this scene is not",
+    ),
 ];
 
 /// Refuses a checkpoint carrying a plug-in's section that none of `owners` claims.
@@ -128,4 +132,38 @@ pub fn tune_each<B: 'static>(
         }
     }
     Err(param.unused_note().into())
+}
+
+/// The stages the scheme and then the plug-ins name, in that order (repeats included: a
+/// driver lists each once, after its own).
+pub fn named_stages<B: 'static>(
+    scheme: &dyn Adaptation<B>,
+    plugins: &[Box<dyn Adaptation<B>>],
+) -> Vec<&'static str> {
+    scheme
+        .stage()
+        .into_iter()
+        .chain(plugins.iter().filter_map(|p| p.stage()))
+        .collect()
+}
+
+/// Runs `hook` on the scheme and then each plug-in, timing each in its own stage (`default`
+/// for those that name none).
+pub fn each<B: 'static>(
+    scheme: &mut dyn Adaptation<B>,
+    plugins: &mut [Box<dyn Adaptation<B>>],
+    stages: &mut Stages,
+    lap: &mut Lap,
+    default: usize,
+    mut hook: impl FnMut(&mut dyn Adaptation<B>),
+) {
+    let mut timed = |p: &mut dyn Adaptation<B>| {
+        let stage = p.stage().and_then(|s| stages.index(s)).unwrap_or(default);
+        hook(p);
+        lap.charge(stages, stage);
+    };
+    timed(scheme);
+    for p in plugins.iter_mut() {
+        timed(&mut **p);
+    }
 }

@@ -3,9 +3,15 @@
 //! back in time (the thesis's references), node by node on the shared lattice; and against
 //! the truncation without a layer (free or Neumann ends).
 
-use peridyn_core::scene::Scene;
-use peridyn_core::sim::ScalarSimulation;
+use std::ops::Deref;
+
+use peridyn_core::scene::{Scene, SceneError};
+use peridyn_core::sim::scalar::FieldBody;
+use peridyn_core::sim::{DiffusionSimulation, WaveSimulation};
 use peridyn_core::solver::Stepper;
+
+/// A constructor of a scalar simulation of one physics.
+type New<S> = fn(&Scene) -> Result<S, SceneError>;
 
 fn scene(preset: &str, variant: Option<&str>, set: &[&str]) -> Scene {
     let set: Vec<String> = set.iter().map(|s| s.to_string()).collect();
@@ -67,9 +73,15 @@ impl Comparison {
     }
 }
 
-/// Steps the truncated scenes and the reference together, comparing every `every` steps.
-fn lockstep<const D: usize>(truncated: &[Scene], reference: &Scene, every: u64) -> Vec<Comparison> {
-    let mut far = ScalarSimulation::<D>::new(reference).unwrap();
+/// Steps the truncated scenes and the reference together (each built by `new`), comparing
+/// every `every` steps.
+fn lockstep<const D: usize, S: Stepper + Deref<Target = FieldBody<D>>>(
+    new: New<S>,
+    truncated: &[Scene],
+    reference: &Scene,
+    every: u64,
+) -> Vec<Comparison> {
+    let mut far = new(reference).unwrap();
     let origin = far.positions()[0];
     let dx = reference.spacing;
     let key = |x: &[f64; D]| -> [i64; D] {
@@ -81,10 +93,10 @@ fn lockstep<const D: usize>(truncated: &[Scene], reference: &Scene, every: u64) 
         .enumerate()
         .map(|(i, x)| (key(x), i))
         .collect();
-    let mut runs: Vec<(ScalarSimulation<D>, Vec<usize>, Comparison)> = truncated
+    let mut runs: Vec<(S, Vec<usize>, Comparison)> = truncated
         .iter()
         .map(|t| {
-            let near = ScalarSimulation::<D>::new(t).unwrap();
+            let near = new(t).unwrap();
             let map = near
                 .positions()
                 .iter()
@@ -158,7 +170,8 @@ fn lockstep<const D: usize>(truncated: &[Scene], reference: &Scene, every: u64) 
 #[test]
 fn diffusion_leaves_the_near_field_through_the_layer() {
     let reference = scene("abc-diffusion-1d", Some("reference"), &[]);
-    let runs = lockstep::<1>(
+    let runs = lockstep::<1, _>(
+        DiffusionSimulation::new,
         &[
             scene("abc-diffusion-1d", None, &[]),
             scene("abc-diffusion-1d", Some("neumann"), &[]),
@@ -194,7 +207,7 @@ fn wave_mode_count_saturates() {
         .collect();
     scenes.push(scene("abc-wave-1d", None, &[]));
     scenes.push(scene("abc-wave-1d", None, &["absorbing.wave_numbers=8"]));
-    let runs = lockstep::<1>(&scenes, &reference, 100);
+    let runs = lockstep::<1, _>(WaveSimulation::new, &scenes, &reference, 100);
     let error = |k: usize| runs[k].max_error();
     for (k, name) in [
         "free ends",
@@ -230,7 +243,8 @@ fn dispersive_wave_leaves_through_the_layer() {
         Some("m25-reference"),
         &["geometry.box.min=[-32.0]", "geometry.box.max=[32.0]"],
     );
-    let runs = lockstep::<1>(
+    let runs = lockstep::<1, _>(
+        WaveSimulation::new,
         &[
             scene("abc-wave-1d", Some("m25"), &[]),
             scene("abc-wave-1d", Some("m25-free"), &[]),
@@ -257,7 +271,8 @@ fn dispersive_wave_leaves_through_the_layer() {
 #[test]
 fn corrosion_volume_loss_matches_the_large_domain() {
     let reference = scene("abc-corrosion-2d", Some("small-reference"), &[]);
-    let runs = lockstep::<2>(
+    let runs = lockstep::<2, _>(
+        DiffusionSimulation::new,
         &[
             scene("abc-corrosion-2d", Some("small"), &[]),
             scene("abc-corrosion-2d", Some("small-neumann"), &[]),
@@ -318,7 +333,7 @@ fn wave_2d_leaves_the_disc_through_the_layer() {
         .iter()
         .map(|v| scene("abc-wave-2d", Some(v), &[]))
         .collect();
-    let runs = lockstep::<2>(&scenes, &reference, 10);
+    let runs = lockstep::<2, _>(WaveSimulation::new, &scenes, &reference, 10);
     for (v, c) in variants.iter().zip(&runs) {
         eprintln!(
             "S7 {v}: max |u − u_ref| = {:.3e}, reflected Σ(u − u_ref)² at the probe = {:.3e}, \
@@ -370,7 +385,7 @@ fn wave_2d_with_notches_leaves_the_disc_through_the_layer() {
         .iter()
         .map(|v| scene("abc-wave-2d", Some(v), &[]))
         .collect();
-    let runs = lockstep::<2>(&scenes, &reference, 10);
+    let runs = lockstep::<2, _>(WaveSimulation::new, &scenes, &reference, 10);
     for (v, c) in variants.iter().zip(&runs) {
         eprintln!(
             "S8 {v}: max |u − u_ref| = {:.3e}, reflected Σ(u − u_ref)² at the probe = {:.3e}, \
@@ -402,17 +417,20 @@ fn wave_2d_with_notches_leaves_the_disc_through_the_layer() {
 
 /// The one-step map of a linear scalar simulation, column by column: each state component set
 /// to 1 in turn (the rest 0), one step, the new state read back. A state is the field, and for
-/// waves also u̇, u^{n−1} and u̇^{n−1}.
-fn one_step_map<const D: usize>(scene: &Scene) -> nalgebra::DMatrix<f64> {
-    let mut sim = ScalarSimulation::<D>::new(scene).unwrap();
+/// waves also u̇, u^{n−1} and u̇^{n−1} (built by `new`).
+fn one_step_map<const D: usize, S: Stepper + Deref<Target = FieldBody<D>>>(
+    new: New<S>,
+    scene: &Scene,
+) -> nalgebra::DMatrix<f64> {
+    let mut sim = new(scene).unwrap();
     let n = sim.positions().len();
-    let names: &[&str] = if sim.velocity().is_some() {
+    let template = sim.save_state();
+    let names: &[&str] = if template.has("velocity") {
         &["field", "velocity", "previous_field", "previous_velocity"]
     } else {
         &["field"]
     };
     let size = n * names.len();
-    let template = sim.save_state();
     let mut map = nalgebra::DMatrix::zeros(size, size);
     for column in 0..size {
         let mut state = template.clone();
@@ -449,18 +467,18 @@ fn spectral_radius(map: nalgebra::DMatrix<f64>) -> f64 {
 /// tenfold, measured); the n_b = 2 layer, which the note's check saw diverge, is far above.
 #[test]
 fn absorbing_layers_are_stable_for_any_number_of_steps() {
-    let diffusion = spectral_radius(one_step_map::<1>(&scene("abc-diffusion-1d", None, &[])));
-    let neumann = spectral_radius(one_step_map::<1>(&scene(
-        "abc-diffusion-1d",
-        Some("neumann"),
-        &[],
-    )));
-    let wave = spectral_radius(one_step_map::<1>(&scene("abc-wave-1d", None, &[])));
-    let two = spectral_radius(one_step_map::<1>(&scene(
-        "abc-wave-1d",
-        Some("modes-2"),
-        &[],
-    )));
+    let diffusion_map = |variant| {
+        one_step_map::<1, _>(
+            DiffusionSimulation::new,
+            &scene("abc-diffusion-1d", variant, &[]),
+        )
+    };
+    let wave_map =
+        |variant| one_step_map::<1, _>(WaveSimulation::new, &scene("abc-wave-1d", variant, &[]));
+    let diffusion = spectral_radius(diffusion_map(None));
+    let neumann = spectral_radius(diffusion_map(Some("neumann")));
+    let wave = spectral_radius(wave_map(None));
+    let two = spectral_radius(wave_map(Some("modes-2")));
     eprintln!(
         "spectral radius of one step: S1 layer {diffusion:.12}, S1 Neumann {neumann:.12}, S4 n_b = 5 \
          {wave:.12}, S4 n_b = 2 {two:.6}"
@@ -476,7 +494,7 @@ fn absorbing_layers_are_stable_for_any_number_of_steps() {
 /// value when the pulse has left (t = 50) and never exceeds the initial energy; S7's must
 /// also keep falling: below 10⁻⁶ of its t = 50 value at the end (measured 1.9e-16 against
 /// 2.1e-2: without the rest modes and the filter a lattice sawtooth grew from t ≈ 700 on and
-/// passed the initial energy, docs/results.md). ≈ 2 min in CI.
+/// passed the initial energy, docs/validation.md). ≈ 2 min in CI.
 #[test]
 fn long_runs_stay_bounded() {
     let check = |name: &str, energies: &[(f64, f64)]| {
@@ -503,7 +521,7 @@ fn long_runs_stay_bounded() {
 }
 
 fn energy_history<const D: usize>(s: &Scene) -> Vec<(f64, f64)> {
-    let mut sim = ScalarSimulation::<D>::new(s).unwrap();
+    let mut sim = WaveSimulation::<D>::new(s).unwrap();
     let mut out = vec![(0.0, sim.frame().scalar("energy/near_field").unwrap())];
     let mut n = 0u64;
     while !sim.run().clock.done() {
@@ -525,7 +543,7 @@ fn energy_history<const D: usize>(s: &Scene) -> Vec<(f64, f64)> {
 #[test]
 fn a_restored_wave_run_ends_where_the_uninterrupted_one_does() {
     let s = scene("abc-wave-1d", Some("small"), &[]);
-    let mut whole = ScalarSimulation::<1>::new(&s).unwrap();
+    let mut whole = WaveSimulation::<1>::new(&s).unwrap();
     let mut state = None;
     while !whole.run().clock.done() {
         whole.step().unwrap();
@@ -533,7 +551,7 @@ fn a_restored_wave_run_ends_where_the_uninterrupted_one_does() {
             state = Some(whole.save_state());
         }
     }
-    let mut resumed = ScalarSimulation::<1>::new(&s).unwrap();
+    let mut resumed = WaveSimulation::<1>::new(&s).unwrap();
     resumed.restore_state(&state.unwrap()).unwrap();
     while !resumed.run().clock.done() {
         resumed.step().unwrap();
@@ -549,13 +567,13 @@ fn a_restored_wave_run_ends_where_the_uninterrupted_one_does() {
 fn a_new_time_step_refits_the_layer() {
     let reference = {
         let mut r =
-            ScalarSimulation::<1>::new(&scene("abc-wave-1d", Some("reference"), &[])).unwrap();
+            WaveSimulation::<1>::new(&scene("abc-wave-1d", Some("reference"), &[])).unwrap();
         while !r.run().clock.done() {
             r.step().unwrap();
         }
         r
     };
-    let mut s = ScalarSimulation::<1>::new(&scene("abc-wave-1d", None, &[])).unwrap();
+    let mut s = WaveSimulation::<1>::new(&scene("abc-wave-1d", None, &[])).unwrap();
     while !s.run().clock.done() {
         if s.run().clock.step() == 12_500 {
             s.set_dt(5e-4);
@@ -587,7 +605,7 @@ fn zz_wave_2d_long_energy() {
     let s = scene("abc-wave-2d", Some("scaled"), &set);
     if std::env::var("WHERE").is_ok() {
         // Where the field is largest at the end: the nodes a growing mode lives on.
-        let mut sim = ScalarSimulation::<2>::new(&s).unwrap();
+        let mut sim = WaveSimulation::<2>::new(&s).unwrap();
         while !sim.run().clock.done() && sim.step().is_ok() {}
         let u = sim.field();
         let mut order: Vec<usize> = (0..u.len()).collect();
@@ -624,7 +642,7 @@ fn zz_wave_2d_leading_mode() {
     let mut set: Vec<&str> = vec![geometry.as_str(), end.as_str()];
     set.extend(extra.iter().map(String::as_str));
     let s = scene("abc-wave-2d", Some("scaled"), &set);
-    let mut sim = ScalarSimulation::<2>::new(&s).unwrap();
+    let mut sim = WaveSimulation::<2>::new(&s).unwrap();
     let mut seed = 0x2545_f491_4f6c_dd1du64;
     let mut random: Vec<f64> = (0..sim.field().len())
         .map(|_| {

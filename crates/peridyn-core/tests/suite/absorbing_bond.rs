@@ -198,7 +198,7 @@ fn bond_pulse_leaves_the_disc_through_the_layer() {
 /// before 0.05 ms). Over the near field (r < 48 mm) the signal reflected to the probe stays
 /// below 10 % of what the free truncation lets through (the bound against a reflecting
 /// boundary; 4.7·10⁻⁶ with the plain fit, the preset's figure in the test log and
-/// docs/results.md) and the largest error below a tenth of the free truncation's (8.5·10⁻⁷ m).
+/// docs/validation.md) and the largest error below a tenth of the free truncation's (8.5·10⁻⁷ m).
 #[test]
 fn scaled_bond_layer_matches_the_large_disc() {
     let reference = scene("scaled-reference");
@@ -218,7 +218,7 @@ fn scaled_bond_layer_matches_the_large_disc() {
     // energy of the closed region wavers by ≈ 1 % as the pulse turns potential into kinetic
     // energy (Verlet keeps a shadow energy, not this one), in the reference too. It then falls
     // at every check until the 2D wake's flux turns inwards for a while (the first rise at
-    // 69.8 µs; on r ≤ 300 mm to 0.1 ms it rises at 4 checks, docs/results.md).
+    // 69.8 µs; on r ≤ 300 mm to 0.1 ms it rises at 4 checks, docs/validation.md).
     let reference_series: Vec<f64> = layer.compared_energies.iter().map(|e| e.1).collect();
     let rising = |w: &[f64]| w[1] > w[0] * (1.0 + 1e-9);
     let from = reference_series
@@ -264,7 +264,7 @@ fn scaled_bond_layer_matches_the_large_disc() {
     eprintln!("S10 scaled: after the reference's first rise, the layer's rises at {later:?}");
     // The "decreases monotonically after the pulse reaches the layer", for as long as
     // the unbounded plane's own energy over these nodes does. The layer meets it through its
-    // damped band (docs/results.md, "S10: a damped band inside the layer").
+    // damped band (docs/validation.md, "S10: a damped band inside the layer").
     assert!(up[0].is_empty() && own.is_empty());
     assert!(!layer.diverged);
     assert!(layer.max_error() < 0.1 * free.max_error());
@@ -334,7 +334,7 @@ fn scan_bond_layers() {
 /// be below 1 % of its value when the pulse has left (t = 0.03 ms), and it never exceeds the
 /// initial energy (measured with the preset's λ = 5e-4, filter 0.5 and damped band: 5.9·10⁻² J
 /// → 5.3·10⁻⁷ J, falling at every 10⁴ steps; with the plain pseudo-inverse alone the layer
-/// diverges near 3 000 steps; docs/results.md, "S10's long run" and "S10: a damped band").
+/// diverges near 3 000 steps; docs/validation.md, "S10's long run" and "S10: a damped band").
 #[test]
 fn long_bond_run_stays_bounded() {
     let s = Scene::load_with(

@@ -146,7 +146,7 @@ fn largest_difference(
 }
 
 /// The full scaled scene (195 k nodes, m = 6) at Δt = 1 s to 3000 s: minutes, so run on demand
-/// (`cargo test --release --test corrosion -- --ignored`); the figure is in docs/results.md.
+/// (`cargo test --release --test corrosion -- --ignored`); the figure is in docs/validation.md.
 #[test]
 #[ignore]
 fn corrosion_3d_full_size_hybrid_volume_loss_follows_the_standard_scheme() {

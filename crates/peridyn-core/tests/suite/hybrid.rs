@@ -410,7 +410,7 @@ fn motion_filtered_check_switches_exactly_like_the_exhaustive_check() {
 /// The orbit stencils of the `*-fast` variants keep the hybrid's stable step at ≥ 0.6× the
 /// standard scheme's on the same grid (issue 14 item 6): m = 4 (`small-fast` against `small`)
 /// and m = 8 (the same variants at spacing 0.5 mm, the m = 8 orbits of `paper-fast`). The
-/// papers' δ/3 auxiliary grid gives 0.375× at m = 4 (docs/results.md), which this would catch.
+/// papers' δ/3 auxiliary grid gives 0.375× at m = 4 (docs/validation.md), which this would catch.
 #[test]
 fn orbit_stencils_keep_the_stable_step_near_the_standard_schemes() {
     let ratio = |set: &[&str], orbits: Option<&str>| {

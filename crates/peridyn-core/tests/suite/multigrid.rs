@@ -5,7 +5,7 @@
 //! tests across the interface.
 
 use peridyn_core::scene::Scene;
-use peridyn_core::sim::{self, ScalarSimulation};
+use peridyn_core::sim::{self, DiffusionSimulation};
 
 const PRESET: &str = "corrosion-1d";
 
@@ -85,7 +85,7 @@ fn the_solid_dissolves_when_the_fine_models_does() {
 /// The rates of `field` on the multi-grid scene's rows, with the rows' positions.
 fn rates(set: &[&str], field: &dyn Fn(f64) -> f64) -> Vec<(f64, f64)> {
     let s = scene(Some("multigrid"), set);
-    let mut sim = ScalarSimulation::<1>::new(&s).unwrap();
+    let mut sim = DiffusionSimulation::<1>::new(&s).unwrap();
     let positions: Vec<f64> = sim.positions().iter().map(|x| x[0]).collect();
     let mut values: Vec<f64> = positions.iter().map(|&x| field(x)).collect();
     sim.set_field(&mut values);
@@ -155,9 +155,9 @@ fn a_wls_coarse_level_reproduces_the_pd_operator_and_the_fine_models_dissolution
     let wls = ["multigrid.coarse=\"wls\""];
     let s = scene(Some("multigrid"), &wls);
     let (kappa, delta) = (2.0, s.horizon);
-    let mut sim = ScalarSimulation::<1>::new(&s).unwrap();
+    let mut sim = DiffusionSimulation::<1>::new(&s).unwrap();
     let positions: Vec<f64> = sim.positions().iter().map(|x| x[0]).collect();
-    let wls_rows = |sim: &mut ScalarSimulation<1>, field: &dyn Fn(f64) -> f64| {
+    let wls_rows = |sim: &mut DiffusionSimulation<1>, field: &dyn Fn(f64) -> f64| {
         let mut values: Vec<f64> = positions.iter().map(|&x| field(x)).collect();
         sim.set_field(&mut values);
         let op = sim.wls_operator().expect("a WLS coarse level");

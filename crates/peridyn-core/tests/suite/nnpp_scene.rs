@@ -124,7 +124,7 @@ fn bad_nernst_planck_input_names_the_field() {
 /// sum is accurate as a whole, so correcting its cross part alone undoes part of that
 /// (measured: 3.00e-3 uniform, 6.8e-4 interpolated, 2.43e-3 conservative for C₁). With
 /// electromigration (P = 20 mV) the balance costs more: C₁ 1.78e-2 uniform, 2.08e-2
-/// interpolated, 0.119 conservative (docs/results.md) — the price of exact conservation at a
+/// interpolated, 0.119 conservative (docs/validation.md) — the price of exact conservation at a
 /// steady state that carries a large exchange across the level interface.
 #[test]
 fn the_couplings_on_the_manufactured_multi_grid() {

@@ -483,7 +483,7 @@ pub enum Precrack {
 /// rounded cross product is exactly 0: the rounding of the coordinates decides, so a tip and
 /// its mirror image may differ (kept as the default because the Kalthoff–Winkler presets'
 /// validated crack angles were measured with it: on `medium` the lower crack's angle moves by
-/// up to 4° with the few bonds through its tip; docs/results.md).
+/// up to 4° with the few bonds through its tip; docs/validation.md).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum CrackEnds {

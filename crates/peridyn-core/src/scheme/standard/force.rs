@@ -14,7 +14,7 @@ use crate::model::pmb::{Influence, PmbLaw};
 use crate::scheme::RowMask;
 use crate::simd::{LaneLoop, Lanes, Portable, Simd};
 
-use super::NodeTerms;
+use super::terms::NodeTerms;
 
 /// Nodes per task of the force loop.
 const ROWS_PER_TASK: usize = 512;
