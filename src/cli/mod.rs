@@ -109,7 +109,7 @@ pub fn check(request: &SceneRequest) -> Result<ExitCode, Failure> {
     let scene = request.load()?;
     let sim = sim::build(&scene).map_err(|e| Failure::BadInput(e.to_string()))?;
     println!("{}", describe(&scene, &sim.info(), None));
-    for line in sim.check_notes() {
+    for line in &sim.info().notes {
         println!("{line}");
     }
     Ok(ExitCode::SUCCESS)

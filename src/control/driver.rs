@@ -426,7 +426,7 @@ impl Driver {
         let wall = self.started.elapsed().as_secs_f64();
         let last_frame = self.last_frame.take();
         Ok(RunSummary::of(
-            self.sim.as_ref(),
+            self.sim.as_mut(),
             self.frames,
             wall,
             self.frame_seconds,

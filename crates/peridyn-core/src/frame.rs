@@ -10,6 +10,26 @@ pub struct NodeField {
     pub range: (f64, f64),
 }
 
+impl NodeField {
+    /// The damage field φ ∈ [0, 1] (thesis (2.38)).
+    pub fn damage(values: Vec<f64>) -> NodeField {
+        NodeField {
+            name: "damage".into(),
+            values,
+            range: (0.0, 1.0),
+        }
+    }
+
+    /// The speed |u̇| shown on `[0, scale]`.
+    pub fn speed(values: Vec<f64>, scale: f64) -> NodeField {
+        NodeField {
+            name: "velocity".into(),
+            values,
+            range: (0.0, scale),
+        }
+    }
+}
+
 /// One per-node class field (a mask): class ids and the classes' names and colors, shown with
 /// an annotation context so the viewer names each class.
 #[derive(Debug, Clone)]

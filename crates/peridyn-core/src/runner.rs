@@ -42,13 +42,15 @@ pub struct RunSummary {
     pub relative_error: Option<f64>,
     /// Wall time per stage of `step()`, in seconds.
     pub stages: Vec<(&'static str, f64)>,
+    /// The run's final frame (the summary's figures are read from it).
     pub last_frame: Option<Frame>,
 }
 
 impl RunSummary {
-    /// The summary of `sim` as it stands after a run.
+    /// The summary of `sim` as it stands after a run, its figures read from the run's final
+    /// frame (`last_frame`, or one built now if the run sent none at its end).
     pub fn of(
-        sim: &dyn Stepper,
+        sim: &mut dyn Stepper,
         frames: u64,
         wall_seconds: f64,
         frame_seconds: f64,
@@ -56,23 +58,32 @@ impl RunSummary {
         error: Option<SimError>,
         last_frame: Option<Frame>,
     ) -> Self {
+        let info = sim.info();
+        let frame = last_frame.unwrap_or_else(|| sim.frame());
         RunSummary {
-            crack_angles: sim.crack_angles(),
-            broken_bonds: sim.broken_bonds(),
-            relative_error: sim.relative_error(),
+            crack_angles: info
+                .crack_angles
+                .iter()
+                .map(|name| {
+                    let angle = frame.scalar(&format!("crack_angle_deg/{name}"));
+                    (name.clone(), angle)
+                })
+                .collect(),
+            broken_bonds: frame.scalar("bonds/broken").unwrap_or(0.0) as u64,
+            relative_error: frame.scalar("error/relative_l2"),
             stages: sim
                 .stages()
                 .named()
                 .map(|(n, d)| (n, d.as_secs_f64()))
                 .collect(),
             steps: sim.steps_done(),
-            info: sim.info(),
+            info,
             frames,
             wall_seconds,
             frame_seconds,
             interrupted,
             error,
-            last_frame,
+            last_frame: Some(frame),
         }
     }
 

@@ -167,3 +167,43 @@ pub fn each<B: 'static>(
         timed(&mut **p);
     }
 }
+
+/// Saves the scheme's (if any) and then every plug-in's checkpoint sections.
+pub fn save_each<B: 'static>(
+    scheme: Option<&dyn Adaptation<B>>,
+    plugins: &[Box<dyn Adaptation<B>>],
+    body: &B,
+    state: &mut State,
+) {
+    for p in scheme.into_iter().chain(plugins.iter().map(|p| &**p)) {
+        p.save(body, state);
+    }
+}
+
+/// Refuses a checkpoint carrying a section that neither the scheme (if any) nor a plug-in
+/// owns, then restores the scheme's and every plug-in's sections; each validates its sections
+/// in full before it changes anything of its own.
+pub fn restore_each<B: 'static>(
+    mut scheme: Option<&mut dyn Adaptation<B>>,
+    plugins: &mut [Box<dyn Adaptation<B>>],
+    body: &mut B,
+    state: &State,
+) -> Result<(), String> {
+    let owned = |s: &str| {
+        scheme.as_ref().is_some_and(|p| p.owns_section(s))
+            || plugins.iter().any(|p| p.owns_section(s))
+    };
+    refuse_foreign_sections(state, owned)?;
+    if let Some(p) = scheme.as_mut() {
+        p.restore(body, state)?;
+    }
+    for p in plugins.iter_mut() {
+        p.restore(body, state)?;
+    }
+    Ok(())
+}
+
+/// Every plug-in's notes for `check`, in order.
+pub fn notes_of<B: 'static>(plugins: &[Box<dyn Adaptation<B>>]) -> Vec<String> {
+    plugins.iter().flat_map(|p| p.notes()).collect()
+}

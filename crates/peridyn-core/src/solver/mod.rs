@@ -42,6 +42,11 @@ pub struct SimInfo {
     /// Mean nodes per updated node's stencil, the node itself included: the family (standard
     /// scheme, the papers' counts: 2m+1 in 1D, 441 for m = 12 in 2D) or the collocation set.
     pub stencil: f64,
+    /// The names of the scene's `[[metrics.crack_angle]]`: each angle travels as the frame
+    /// scalar `crack_angle_deg/<name>`, present once that crack is found.
+    pub crack_angles: Vec<String>,
+    /// Further lines for `check` (an absorbing layer's conditioning).
+    pub notes: Vec<String>,
 }
 
 impl SimInfo {
@@ -88,6 +93,8 @@ pub struct RunState {
     pub frame_every: u64,
     pub stages: Stages,
     pub step_wall: StepWall,
+    /// The names of the scene's crack-angle measures (for [`SimInfo::crack_angles`]).
+    pub crack_angles: Vec<String>,
 }
 
 impl RunState {
@@ -105,6 +112,7 @@ impl RunState {
             stable,
             stages: Stages::new(stages),
             step_wall: StepWall::default(),
+            crack_angles: scene.crack_angles.iter().map(|c| c.name.clone()).collect(),
         })
     }
 
@@ -128,6 +136,8 @@ impl RunState {
             frame_every: self.frame_every,
             bytes_per_bond: size.bytes_per_bond,
             stencil: size.stencil,
+            crack_angles: self.crack_angles.clone(),
+            notes: Vec::new(),
         }
     }
 
@@ -211,28 +221,9 @@ pub trait Stepper: Send {
         Err(param.unused_note().into())
     }
 
-    /// Final crack angles `(name, degrees)` (None where no crack was found).
-    fn crack_angles(&self) -> Vec<(String, Option<f64>)> {
-        Vec::new()
-    }
-
-    fn broken_bonds(&self) -> u64 {
-        0
-    }
-
-    /// Relative ℓ² error (3.79) against the scene's reference solution, if it has one.
-    fn relative_error(&self) -> Option<f64> {
-        None
-    }
-
     /// True when an iterative solve has met its tolerance (dynamic relaxation): the run stops
     /// there, before its step cap.
     fn converged(&self) -> bool {
         false
-    }
-
-    /// Further lines for `check` (an absorbing layer's conditioning).
-    fn check_notes(&self) -> Vec<String> {
-        Vec::new()
     }
 }

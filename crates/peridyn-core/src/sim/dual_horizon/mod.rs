@@ -262,16 +262,8 @@ impl Stepper for DualHorizonSimulation {
             dim: 2,
             positions: body.positions().as_flattened().to_vec(),
             fields: vec![
-                NodeField {
-                    name: "damage".into(),
-                    values: damage,
-                    range: (0.0, 1.0),
-                },
-                NodeField {
-                    name: "velocity".into(),
-                    values: speed,
-                    range: (0.0, body.velocity_scale),
-                },
+                NodeField::damage(damage),
+                NodeField::speed(speed, body.velocity_scale),
             ],
             classes: vec![ClassField {
                 name: "level",
@@ -388,14 +380,6 @@ impl Stepper for DualHorizonSimulation {
         Ok(())
     }
 
-    fn crack_angles(&self) -> Vec<(String, Option<f64>)> {
-        self.body.crack_angles_for(&self.body.damage())
-    }
-
-    fn broken_bonds(&self) -> u64 {
-        self.body.broken
-    }
-
     fn tune(&mut self, param: Param) -> Result<(), String> {
         if self.plugins.is_empty() {
             return Err(param.unused_note().into());
@@ -404,5 +388,18 @@ impl Stepper for DualHorizonSimulation {
             return Err("a dual-horizon scene has no hybrid scheme: χ is recorded only".into());
         }
         tune_each(&mut self.forces, &mut self.plugins, &mut self.body, param)
+    }
+}
+
+impl DualHorizonSimulation {
+    /// Crack angles `(name, degrees)` of the scene's `[[metrics.crack_angle]]` now (None where
+    /// no crack was found).
+    pub fn crack_angles(&self) -> Vec<(String, Option<f64>)> {
+        self.body.crack_angles_for(&self.body.damage())
+    }
+
+    /// The bonds broken so far.
+    pub fn broken_bonds(&self) -> u64 {
+        self.body.broken
     }
 }

@@ -90,16 +90,8 @@ impl<const D: usize> DynamicSimulation<D> {
             dim: D,
             positions: body.positions().as_flattened().to_vec(),
             fields: vec![
-                NodeField {
-                    name: "damage".into(),
-                    values: damage,
-                    range: (0.0, 1.0),
-                },
-                NodeField {
-                    name: "velocity".into(),
-                    values: speed,
-                    range: (0.0, body.velocity_scale),
-                },
+                NodeField::damage(damage),
+                NodeField::speed(speed, body.velocity_scale),
             ],
             classes: Vec::new(),
             events: Vec::new(),

@@ -30,7 +30,7 @@ use crate::metrics::probes;
 use crate::model::pmb::PmbLaw;
 use crate::scene::{CoarseScheme, Scene, SceneError};
 use crate::scheme::wls_rows::WlsRows;
-use crate::solver::adaptation::{refuse_foreign_sections, tune_each};
+use crate::solver::adaptation::{notes_of, restore_each, save_each, tune_each};
 use crate::solver::{Adaptation, Clock, Param, RunState, SimError, SimInfo, Size, State, Stepper};
 
 pub struct DynamicSimulation<const D: usize> {
@@ -258,8 +258,11 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         let body = &self.body;
         let (nodes, bonds) = (body.nodes().len(), body.families().bond_count());
         let bytes_per_bond = body.memory_bytes() as f64 / bonds.max(1) as f64;
-        self.run
-            .info(Size::of_bonds(D, nodes, bonds, bytes_per_bond))
+        let mut info = self
+            .run
+            .info(Size::of_bonds(D, nodes, bonds, bytes_per_bond));
+        info.notes = notes_of(&self.plugins);
+        info
     }
 
     fn run(&self) -> &RunState {
@@ -275,25 +278,20 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
         self.run.clock.save(&mut state);
         self.body
             .save(&mut state, |i| self.scheme.energy_density(&self.body, i));
-        self.scheme.save(&self.body, &mut state);
-        for p in &self.plugins {
-            p.save(&self.body, &mut state);
-        }
+        save_each(
+            Some(&*self.scheme as &dyn Adaptation<_>),
+            &self.plugins,
+            &self.body,
+            &mut state,
+        );
         state
     }
 
     fn restore_state(&mut self, state: &State) -> Result<(), String> {
         let clock = Clock::restore(state)?;
         let saved = self.body.read_state(state)?;
-        let (scheme, plugins) = (&self.scheme, &self.plugins);
-        refuse_foreign_sections(state, |s| {
-            scheme.owns_section(s) || plugins.iter().any(|p| p.owns_section(s))
-        })?;
-        // Each validates its sections in full before it changes anything of its own.
-        self.scheme.restore(&mut self.body, state)?;
-        for p in &mut self.plugins {
-            p.restore(&mut self.body, state)?;
-        }
+        let scheme = Some(&mut *self.scheme as &mut dyn Adaptation<_>);
+        restore_each(scheme, &mut self.plugins, &mut self.body, state)?;
         self.body.write_state(saved);
         self.run.clock = clock;
         Ok(())
@@ -302,16 +300,17 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
     fn tune(&mut self, param: Param) -> Result<(), String> {
         tune_each(&mut *self.scheme, &mut self.plugins, &mut self.body, param)
     }
+}
 
-    fn crack_angles(&self) -> Vec<(String, Option<f64>)> {
+impl<const D: usize> DynamicSimulation<D> {
+    /// Crack angles `(name, degrees)` of the scene's `[[metrics.crack_angle]]` now (None where
+    /// no crack was found).
+    pub fn crack_angles(&self) -> Vec<(String, Option<f64>)> {
         self.crack_angles_for(&self.body.damage())
     }
 
-    fn check_notes(&self) -> Vec<String> {
-        self.plugins.iter().flat_map(|p| p.notes()).collect()
-    }
-
-    fn broken_bonds(&self) -> u64 {
+    /// The bonds broken so far.
+    pub fn broken_bonds(&self) -> u64 {
         self.body.broken
     }
 }

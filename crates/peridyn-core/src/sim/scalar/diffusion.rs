@@ -28,7 +28,7 @@ use crate::model::corrosion::CorrosionLaw;
 use crate::model::diffusion::DiffusionKernel;
 use crate::scene::{Scene, SceneError};
 use crate::scheme::VectorOperator;
-use crate::solver::adaptation::{refuse_foreign_sections, tune_each};
+use crate::solver::adaptation::{notes_of, restore_each, save_each, tune_each};
 use crate::solver::{
     Adaptation, Clock, Integrator, Param, RunState, SimError, SimInfo, Stages, State, Stepper,
 };
@@ -220,7 +220,9 @@ impl<const D: usize> Stepper for DiffusionSimulation<D> {
     fn info(&self) -> SimInfo {
         let wls = self.scheme.wls();
         let extra = wls.map_or((0, 0), |w| (w.columns.len(), w.rows.len()));
-        self.run.info(self.body.size(extra))
+        let mut info = self.run.info(self.body.size(extra));
+        info.notes = notes_of(&self.plugins);
+        info
     }
 
     fn run(&self) -> &RunState {
@@ -235,25 +237,20 @@ impl<const D: usize> Stepper for DiffusionSimulation<D> {
         let mut state = State::default();
         self.run.clock.save(&mut state);
         self.body.save(&mut state);
-        self.scheme.save(&self.body, &mut state);
-        for p in &self.plugins {
-            p.save(&self.body, &mut state);
-        }
+        save_each(
+            Some(&*self.scheme as &dyn Adaptation<_>),
+            &self.plugins,
+            &self.body,
+            &mut state,
+        );
         state
     }
 
     fn restore_state(&mut self, state: &State) -> Result<(), String> {
         let clock = Clock::restore(state)?;
         let field = self.body.read(state)?;
-        let (scheme, plugins) = (&self.scheme, &self.plugins);
-        refuse_foreign_sections(state, |s| {
-            scheme.owns_section(s) || plugins.iter().any(|p| p.owns_section(s))
-        })?;
-        // Each validates its sections in full before it changes anything of its own.
-        self.scheme.restore(&mut self.body, state)?;
-        for p in &mut self.plugins {
-            p.restore(&mut self.body, state)?;
-        }
+        let scheme = Some(&mut *self.scheme as &mut dyn Adaptation<_>);
+        restore_each(scheme, &mut self.plugins, &mut self.body, state)?;
         self.body.field_mut().copy_from_slice(field);
         self.run.clock = clock;
         Ok(())
@@ -261,13 +258,5 @@ impl<const D: usize> Stepper for DiffusionSimulation<D> {
 
     fn tune(&mut self, param: Param) -> Result<(), String> {
         tune_each(&mut *self.scheme, &mut self.plugins, &mut self.body, param)
-    }
-
-    fn relative_error(&self) -> Option<f64> {
-        self.body.relative_error_at(self.run.clock.time())
-    }
-
-    fn check_notes(&self) -> Vec<String> {
-        self.plugins.iter().flat_map(|p| p.notes()).collect()
     }
 }

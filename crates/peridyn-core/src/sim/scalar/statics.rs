@@ -130,8 +130,4 @@ impl<const D: usize> Stepper for StaticSimulation<D> {
         self.run.clock = clock;
         Ok(())
     }
-
-    fn relative_error(&self) -> Option<f64> {
-        self.body.relative_error_at(self.run.clock.time())
-    }
 }

@@ -18,7 +18,7 @@ use crate::frame::{Frame, NodeField};
 use crate::integrate::verlet;
 use crate::metrics::probes;
 use crate::scene::{Scene, SceneError};
-use crate::solver::adaptation::{refuse_foreign_sections, tune_each};
+use crate::solver::adaptation::{notes_of, refuse_foreign_sections, tune_each};
 use crate::solver::{
     Adaptation, Clock, Integrator, Param, RunState, SimError, SimInfo, Stages, State, Stepper,
 };
@@ -131,7 +131,9 @@ impl<const D: usize> Stepper for WaveSimulation<D> {
     }
 
     fn info(&self) -> SimInfo {
-        self.run.info(self.body.size((0, 0)))
+        let mut info = self.run.info(self.body.size((0, 0)));
+        info.notes = notes_of(&self.plugins);
+        info
     }
 
     fn run(&self) -> &RunState {
@@ -181,13 +183,5 @@ impl<const D: usize> Stepper for WaveSimulation<D> {
 
     fn tune(&mut self, param: Param) -> Result<(), String> {
         tune_each(&mut WaveForces, &mut self.plugins, &mut self.body, param)
-    }
-
-    fn relative_error(&self) -> Option<f64> {
-        self.body.relative_error_at(self.run.clock.time())
-    }
-
-    fn check_notes(&self) -> Vec<String> {
-        self.plugins.iter().flat_map(|p| p.notes()).collect()
     }
 }
