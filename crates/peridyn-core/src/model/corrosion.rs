@@ -22,6 +22,20 @@ impl Phase {
     pub fn is_solid(self) -> bool {
         self == Phase::Solid
     }
+
+    /// The phases stored as bytes (a checkpoint's `phase` section), or the first byte that is
+    /// no phase, named.
+    pub fn decode(saved: &[u8]) -> Result<Vec<Phase>, String> {
+        saved
+            .iter()
+            .enumerate()
+            .map(|(i, &p)| match p {
+                0 => Ok(Phase::Liquid),
+                1 => Ok(Phase::Solid),
+                _ => Err(format!("phase: node {i} has no phase {p}")),
+            })
+            .collect()
+    }
 }
 
 /// κ_liq, κ_int and C_sat of a corrosion scene.

@@ -641,16 +641,7 @@ impl<const D: usize> Stepper for NernstPlanckSimulation<D> {
             concentration.push(state.f64(&format!("species/{}", law.name), n)?.to_vec());
         }
         let potential = state.f64("potential", n)?.to_vec();
-        let phase = state
-            .u8("phase", n)?
-            .iter()
-            .enumerate()
-            .map(|(i, &p)| match p {
-                0 => Ok(Phase::Liquid),
-                1 => Ok(Phase::Solid),
-                _ => Err(format!("phase: node {i} has no phase {p}")),
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        let phase = Phase::decode(state.u8("phase", n)?)?;
         self.fields.concentration = concentration;
         self.fields.potential = potential;
         self.fields.phase = phase;

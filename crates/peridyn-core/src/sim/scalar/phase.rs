@@ -65,16 +65,7 @@ impl<const D: usize> Adaptation<FieldBody<D>> for Phases {
     }
 
     fn restore(&mut self, body: &mut FieldBody<D>, state: &State) -> Result<(), String> {
-        let saved = state.u8("phase", body.len())?;
-        let phase: Vec<Phase> = saved
-            .iter()
-            .enumerate()
-            .map(|(i, &p)| match p {
-                0 => Ok(Phase::Liquid),
-                1 => Ok(Phase::Solid),
-                _ => Err(format!("phase: node {i} has no phase {p}")),
-            })
-            .collect::<Result<_, _>>()?;
+        let phase = Phase::decode(state.u8("phase", body.len())?)?;
         let fields = &mut body.discretization.nodes.fields;
         fields.get_mut(self.phase).copy_from_slice(&phase);
         Ok(())
