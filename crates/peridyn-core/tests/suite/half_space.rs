@@ -2,8 +2,8 @@
 //! impact between two notches of a bond-based half-space, the cracks growing from the notch tips
 //! while the waves leave through the absorbing layer of S10. The truncated half-disc steps in lock
 //! with the same model on a half-disc so large that no reflection is back in time (preset
-//! `half-space-impact`, variants `short` and `short-reference`), and with a fixed outer ring
-//! (`short-fixed`).
+//! `half-space-impact`, variants `small` and `small-reference`), and with a fixed outer ring
+//! (`small-fixed`).
 
 use std::time::Instant;
 
@@ -68,9 +68,9 @@ fn run(variant: &str) -> Outcome {
 /// domain's; the fixed ring reflects the waves back, so its near-field energy is further off.
 #[test]
 fn half_space_cracks_and_energy_match_the_large_domain() {
-    let truncated = run("short");
-    let reference = run("short-reference");
-    let fixed = run("short-fixed");
+    let truncated = run("small");
+    let reference = run("small-reference");
+    let fixed = run("small-fixed");
     assert_eq!(truncated.nodes, 98_411, "the thesis's node count");
     assert!(
         reference.length > 10e-3 && reference.angle > 45.0,
