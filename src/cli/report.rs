@@ -153,6 +153,14 @@ pub fn print_summary(s: &RunSummary) {
                 println!("{key}: {v:.6e} J");
             }
         }
+        // Region energies and crack lengths of the scene's `[metrics]`.
+        for (key, v) in &f.scalars {
+            if key.starts_with("energy/circle/") || key == "energy/near_field" {
+                println!("{key}: {v:.6e} J");
+            } else if key.starts_with("crack_length/") {
+                println!("{key}: {:.3} mm", 1e3 * v);
+            }
+        }
         let hash = |values: &[f64]| field_hash(values.iter().map(|v| v.to_bits()));
         if let Some(d) = f.fields.iter().find(|f| f.name == "damage") {
             println!("final damage hash: {:016x}", hash(&d.values));

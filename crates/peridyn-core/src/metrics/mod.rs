@@ -1,13 +1,11 @@
-//! Measurements on the node state: energies, momentum, crack-path angle, crack branching,
-//! probes and the near-field energy.
+//! Measurements on the node state: energies, momentum, crack angle and length, crack
+//! branching, probes and the near-field energy.
 
 pub mod branching;
+pub mod cracks;
 pub mod probes;
 
-use std::collections::VecDeque;
-
-use crate::discretization::family::Families;
-use crate::scene::CrackAngleSpec;
+pub use cracks::{crack_angle, crack_angles, crack_length, crack_lengths};
 
 /// Kinetic energy Σ ½ ρ V |v|² and linear momentum Σ ρ V v.
 pub fn kinetic_energy_and_momentum<const D: usize>(
@@ -27,58 +25,6 @@ pub fn kinetic_energy_and_momentum<const D: usize>(
     (energy, momentum)
 }
 
-/// Crack angle in degrees (0–90) between `spec.direction` and the least-squares line through
-/// the damaged nodes (φ ≥ threshold) inside `spec.region` that are connected, through
-/// nearest-neighbor bonds, to the damaged nodes near `spec.tip`. None if fewer than 5 nodes.
-pub fn crack_angle<const D: usize>(
-    spec: &CrackAngleSpec,
-    reference: &[[f64; D]],
-    damage: &[f64],
-    families: &Families,
-    spacing: f64,
-    horizon: f64,
-) -> Option<f64> {
-    let n = reference.len();
-    let eligible = |i: usize| {
-        damage[i] >= spec.threshold && spec.region.contains(&reference[i], 1e-9 * spacing)
-    };
-    let mut seen = vec![false; n];
-    let mut queue = VecDeque::new();
-    for i in 0..n {
-        let d2: f64 = (0..D)
-            .map(|k| (reference[i][k] - spec.tip[k]).powi(2))
-            .sum();
-        if d2 <= (2.0 * horizon).powi(2) && eligible(i) {
-            seen[i] = true;
-            queue.push_back(i);
-        }
-    }
-    let mut members = Vec::new();
-    while let Some(i) = queue.pop_front() {
-        members.push(i);
-        for b in families.range(i) {
-            let j = families.neighbors[b] as usize;
-            if !seen[j] && families.length(i, b) <= 1.5 * spacing && eligible(j) {
-                seen[j] = true;
-                queue.push_back(j);
-            }
-        }
-    }
-    if members.len() < 5 {
-        return None;
-    }
-    let axis = principal_axis(members.iter().map(|&i| &reference[i][..]), D);
-    let norm = spec.direction.iter().map(|v| v * v).sum::<f64>().sqrt();
-    let cos: f64 = axis
-        .iter()
-        .zip(&spec.direction)
-        .map(|(a, b)| a * b / norm)
-        .sum::<f64>()
-        .abs()
-        .min(1.0);
-    Some(cos.acos().to_degrees())
-}
-
 /// `damage/count/<name>`: the nodes of each `[[metrics.damage_count]]` region whose damage
 /// reaches its threshold.
 pub fn damage_counts<const D: usize>(
@@ -94,38 +40,6 @@ pub fn damage_counts<const D: usize>(
             .count();
         scalars.push((format!("damage/count/{}", d.name), count as f64));
     }
-}
-
-/// Unit principal axis (largest-variance direction) of a point set, by power iteration on the
-/// covariance matrix: the total-least-squares line direction.
-fn principal_axis<'a>(points: impl Iterator<Item = &'a [f64]> + Clone, dim: usize) -> Vec<f64> {
-    let count = points.clone().count() as f64;
-    let mut mean = vec![0.0; dim];
-    for p in points.clone() {
-        for k in 0..dim {
-            mean[k] += p[k] / count;
-        }
-    }
-    let mut cov = vec![vec![0.0; dim]; dim];
-    for p in points {
-        for a in 0..dim {
-            for b in 0..dim {
-                cov[a][b] += (p[a] - mean[a]) * (p[b] - mean[b]);
-            }
-        }
-    }
-    let mut v: Vec<f64> = (0..dim).map(|k| 1.0 + 0.1 * k as f64).collect();
-    for _ in 0..200 {
-        let w: Vec<f64> = (0..dim)
-            .map(|a| (0..dim).map(|b| cov[a][b] * v[b]).sum())
-            .collect();
-        let norm = w.iter().map(|x| x * x).sum::<f64>().sqrt();
-        if norm == 0.0 {
-            break;
-        }
-        v = w.iter().map(|x| x / norm).collect();
-    }
-    v
 }
 
 /// The fraction of the cube cell of side `h` centred at `x` that lies inside the ball of
@@ -167,7 +81,6 @@ pub fn ball_fraction<const D: usize>(x: &[f64; D], h: f64, center: &[f64], radiu
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::Solid;
 
     #[test]
     fn cell_fractions_integrate_the_area_of_a_circle_and_a_sphere() {
@@ -208,57 +121,5 @@ mod tests {
         }
         let exact = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3);
         assert!((volume / exact - 1.0).abs() < 2e-3, "{volume} vs {exact}");
-    }
-
-    #[test]
-    fn principal_axis_of_a_line() {
-        let pts: Vec<[f64; 2]> = (0..20)
-            .map(|i| {
-                let t = i as f64;
-                [
-                    t * 60f64.to_radians().cos(),
-                    t * 60f64.to_radians().sin() + 0.01 * (i % 2) as f64,
-                ]
-            })
-            .collect();
-        let axis = principal_axis(pts.iter().map(|p| &p[..]), 2);
-        let angle = axis[1].atan2(axis[0]).to_degrees().rem_euclid(180.0);
-        assert!((angle - 60.0).abs() < 0.1, "{angle}");
-    }
-
-    #[test]
-    fn crack_angle_of_a_damaged_band() {
-        // Lattice with a damaged line at 65° from the tip (0,0).
-        let dx = 1.0;
-        let mut pos = Vec::new();
-        for i in 0..40 {
-            for j in 0..40 {
-                pos.push([i as f64 * dx, j as f64 * dx]);
-            }
-        }
-        let fam = Families::build(&pos, 1.5);
-        let (s, c) = 65f64.to_radians().sin_cos();
-        let damage: Vec<f64> = pos
-            .iter()
-            .map(|p| {
-                if (p[0] * s - p[1] * c).abs() < 0.8 {
-                    0.5
-                } else {
-                    0.0
-                }
-            })
-            .collect();
-        let spec = CrackAngleSpec {
-            name: "test".into(),
-            tip: vec![0.0, 0.0],
-            direction: vec![1.0, 0.0],
-            threshold: 0.35,
-            region: Solid::Box {
-                min: vec![0.0, 0.0],
-                max: vec![40.0, 40.0],
-            },
-        };
-        let angle = crack_angle(&spec, &pos, &damage, &fam, dx, 2.0).unwrap();
-        assert!((angle - 65.0).abs() < 2.0, "{angle}");
     }
 }

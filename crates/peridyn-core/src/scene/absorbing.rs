@@ -215,7 +215,8 @@ pub(super) fn absorbing(
 }
 
 /// Which layer the physics takes, `(method, wave, bond)`: waves fit outgoing modes (bond-based
-/// PD in 2D), diffusion real local modes; the truncation is one box or one sphere.
+/// PD in 2D), diffusion real local modes; the truncation is one box or one sphere (or the base
+/// of a difference).
 fn layer_kind(
     table: &AbsorbingTable,
     ctx: &ErrorContext,
@@ -255,10 +256,11 @@ fn layer_kind(
             format!("absorbing layers are implemented in 1D and 2D; this scene is {dim}D"),
         ));
     }
-    if !matches!(solid, Solid::Box { .. } | Solid::Sphere { .. }) {
+    if solid.truncation_surface().is_none() {
         return Err(ctx.error(
             "geometry",
-            "an absorbing layer needs the truncation to be one box or one sphere (disc)",
+            "an absorbing layer needs the truncation to be one box or one sphere (disc), or a \
+             difference whose base is one (what it cuts away stays a free surface)",
         ));
     }
     Ok((method, wave, bond))

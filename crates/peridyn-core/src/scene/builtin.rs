@@ -42,6 +42,10 @@ const PRESETS: &[(&str, &str)] = &[
         include_str!("../../../../presets/diffusion-2d-manufactured.toml"),
     ),
     (
+        "half-space-impact",
+        include_str!("../../../../presets/half-space-impact.toml"),
+    ),
+    (
         "kalthoff-winkler",
         include_str!("../../../../presets/kalthoff-winkler.toml"),
     ),

@@ -239,12 +239,25 @@ impl Solid {
         }
     }
 
+    /// The shape whose surface truncates an unbounded domain: a box or a sphere, or the base of
+    /// a difference whose base is one. What a difference cuts away (a notch, a hole, the half
+    /// plane above a free surface) is a material surface of the body, not the truncation: a
+    /// half-disc is the disc's truncation with a free top. `None` for other shapes.
+    pub fn truncation_surface(&self) -> Option<&Solid> {
+        match self {
+            Solid::Box { .. } | Solid::Sphere { .. } => Some(self),
+            Solid::Difference { base, .. } => base.truncation_surface(),
+            _ => None,
+        }
+    }
+
     /// The distance of an inside point `x` to the truncation surface of an unbounded-domain
     /// scene and the unit outward normal there: a sphere's radial direction, or for a box the
     /// normalized sum of the outward normals of every face nearer than `width` (the bisector
-    /// near a corner; seed-thesis-ch4-5 §1.1 [ambiguity]). `None` for other shapes.
+    /// near a corner; seed-thesis-ch4-5 §1.1 [ambiguity]). A difference is truncated by its
+    /// base (`truncation_surface`). `None` for other shapes.
     pub fn truncation(&self, x: &[f64], width: f64) -> Option<(f64, Vec<f64>)> {
-        match self {
+        match self.truncation_surface()? {
             Solid::Box { min, max } => {
                 let mut normal = vec![0.0; x.len()];
                 let mut distance = f64::INFINITY;
@@ -454,6 +467,34 @@ mod tests {
         let d = major - core;
         let exact = std::f64::consts::PI * 4.0 * (core * core + core * d + d * d / 3.0);
         assert!((volume / exact - 1.0).abs() < 5e-3, "{volume} vs {exact}");
+    }
+
+    /// A half-disc (a disc minus the half plane above y = 0) is truncated by its disc: the
+    /// radial normal near the curved edge, nothing at the free top; a union has no truncation.
+    #[test]
+    fn a_half_disc_is_truncated_by_its_disc() {
+        let half_disc = Shape::Difference {
+            base: std::boxed::Box::new(Shape::Sphere {
+                center: q(&[0.0, 0.0]),
+                radius: Quantity(10.0),
+            }),
+            minus: vec![Shape::Box {
+                min: q(&[-11.0, 0.0]),
+                max: q(&[11.0, 11.0]),
+            }],
+        }
+        .to_solid(2, "geometry")
+        .unwrap();
+        assert!(half_disc.contains(&[3.0, 0.0], 1e-9), "the top row is in");
+        assert!(!half_disc.contains(&[3.0, 0.5], 1e-9));
+        let (d, n) = half_disc.truncation(&[0.0, -9.5], 1.0).unwrap();
+        assert!((d - 0.5).abs() < 1e-12 && n == vec![0.0, -1.0], "{d} {n:?}");
+        let (d, n) = half_disc.truncation(&[-9.0, 0.0], 1.0).unwrap();
+        assert!((d - 1.0).abs() < 1e-12 && n == vec![-1.0, 0.0], "{d} {n:?}");
+        let (d, _) = half_disc.truncation(&[0.0, 0.0], 1.0).unwrap();
+        assert_eq!(d, 10.0, "the free top is no truncation");
+        let union = Solid::Union(vec![half_disc.clone()]);
+        assert!(union.truncation(&[0.0, -9.5], 1.0).is_none());
     }
 
     #[test]

@@ -40,9 +40,9 @@ pub use schema::{
 };
 pub use spec::{
     AbsorbingSpec, BoundarySpec, CoarseScheme, Condition, CorrosionSpec, CrackAngleSpec,
-    CrackGeometry, DamageCountSpec, DiffusionSpec, Duration, EnergyCircleSpec, HybridSpec,
-    InitialVelocity, MaterialSpec, MultigridSpec, Pulse, PulseDirection, Refinement, SchemeSpec,
-    StepSize, TimeSpec, WaveSpec,
+    CrackGeometry, CrackLengthSpec, DamageCountSpec, DiffusionSpec, Duration, EnergyCircleSpec,
+    HybridSpec, InitialVelocity, MaterialSpec, MultigridSpec, Pulse, PulseDirection, Refinement,
+    SchemeSpec, StepSize, TimeSpec, WaveSpec,
 };
 pub use state_based::{OpeningSpec, SplitRule, StateBasedSpec};
 pub use validated::Scene;

@@ -300,6 +300,15 @@ pub struct CrackAngleSpec {
     pub region: Solid,
 }
 
+/// The length of the crack grown from `tip` (`metrics::crack_length`).
+#[derive(Debug, Clone)]
+pub struct CrackLengthSpec {
+    pub name: String,
+    pub tip: Vec<f64>,
+    pub threshold: f64,
+    pub region: Solid,
+}
+
 /// Kinetic plus strain energy within a circle (sphere) of the reference configuration.
 #[derive(Debug, Clone)]
 pub struct EnergyCircleSpec {

@@ -140,6 +140,7 @@ pub(super) fn validate(
         time,
         output_every: p.output.every,
         crack_angles: measures.crack_angles,
+        crack_lengths: measures.crack_lengths,
         energy_circles: measures.energy_circles,
         probes: measures.probes,
         damage_counts: measures.damage_counts,

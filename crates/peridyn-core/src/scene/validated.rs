@@ -7,9 +7,9 @@ use super::nernst_planck::NernstPlanckSpec;
 use super::reference::Reference;
 use super::schema::{FamilyRadius, Physics};
 use super::spec::{
-    AbsorbingSpec, BoundarySpec, CrackAngleSpec, CrackGeometry, DamageCountSpec, DiffusionSpec,
-    EnergyCircleSpec, HybridSpec, InitialVelocity, MaterialSpec, MultigridSpec, Pulse, SchemeSpec,
-    TimeSpec, WaveSpec,
+    AbsorbingSpec, BoundarySpec, CrackAngleSpec, CrackGeometry, CrackLengthSpec, DamageCountSpec,
+    DiffusionSpec, EnergyCircleSpec, HybridSpec, InitialVelocity, MaterialSpec, MultigridSpec,
+    Pulse, SchemeSpec, TimeSpec, WaveSpec,
 };
 use super::state_based::StateBasedSpec;
 
@@ -66,6 +66,7 @@ pub struct Scene {
     pub time: TimeSpec,
     pub output_every: Option<u64>,
     pub crack_angles: Vec<CrackAngleSpec>,
+    pub crack_lengths: Vec<CrackLengthSpec>,
     pub energy_circles: Vec<EnergyCircleSpec>,
     /// Scalar-field probes: (name, point).
     pub probes: Vec<(String, Vec<f64>)>,

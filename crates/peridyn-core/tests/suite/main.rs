@@ -7,6 +7,7 @@ mod absorbing;
 mod absorbing_bond;
 mod corrosion;
 mod dynamics;
+mod half_space;
 mod hybrid;
 mod kalthoff_winkler;
 mod multigrid;

@@ -606,6 +606,8 @@ pub struct MetricsSpec {
     #[serde(default)]
     pub crack_angle: Vec<CrackAngleSpec>,
     #[serde(default)]
+    pub crack_length: Vec<CrackLengthTable>,
+    #[serde(default)]
     pub energy_circle: Vec<EnergyCircleSpec>,
     #[serde(default)]
     pub damage_count: Vec<DamageCountSpec>,
@@ -705,6 +707,19 @@ pub struct CrackAngleSpec {
     pub name: String,
     pub tip: Point,
     pub direction: Point,
+    #[serde(default = "default_threshold")]
+    pub threshold: f64,
+    pub region: Shape,
+}
+
+/// Length of a crack grown from a pre-crack tip: how far the damaged nodes (φ ≥ threshold)
+/// connected to the tip inside `region` reach from the tip along their least-squares line,
+/// logged as `crack_length/<name>` (m).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CrackLengthTable {
+    pub name: String,
+    pub tip: Point,
     #[serde(default = "default_threshold")]
     pub threshold: f64,
     pub region: Shape,

@@ -1,8 +1,7 @@
 //! Measurements on a particle body: the crack-mouth opening (zeng2024 Sect. 4.1, Table 2) and
-//! crack angles over the body's bonds.
+//! crack angles (`metrics::cracks`).
 
 use super::body::ParticleBody;
-use crate::discretization::Families;
 use crate::metrics;
 
 impl ParticleBody {
@@ -46,41 +45,8 @@ impl ParticleBody {
         Some(face(up) - face(down))
     }
 
-    /// The bonds as a `Families` view (crack-angle connectivity).
-    fn families(&self) -> Families {
-        let x = self.reference();
-        let (offsets, neighbors) = self.bonds.compact_rows();
-        let lengths = (0..self.bonds.particle_count())
-            .flat_map(|k| {
-                neighbors[offsets[k]..offsets[k + 1]].iter().map(move |&j| {
-                    let j = j as usize;
-                    ((x[j][0] - x[k][0]).powi(2) + (x[j][1] - x[k][1]).powi(2)).sqrt()
-                })
-            })
-            .collect();
-        Families::from_rows(offsets, neighbors, lengths)
-    }
-
     /// Crack angles `(name, degrees)` of the scene's `[[metrics.crack_angle]]` for `damage`.
     pub fn crack_angles_for(&self, damage: &[f64]) -> Vec<(String, Option<f64>)> {
-        if self.scene.crack_angles.is_empty() {
-            return Vec::new();
-        }
-        let families = self.families();
-        self.scene
-            .crack_angles
-            .iter()
-            .map(|spec| {
-                let angle = metrics::crack_angle(
-                    spec,
-                    self.reference(),
-                    damage,
-                    &families,
-                    self.scene.spacing,
-                    self.scene.horizon,
-                );
-                (spec.name.clone(), angle)
-            })
-            .collect()
+        metrics::crack_angles(&self.scene, self.reference(), damage, self.scene.spacing)
     }
 }

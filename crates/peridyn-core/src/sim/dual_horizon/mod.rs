@@ -256,6 +256,8 @@ impl Stepper for DualHorizonSimulation {
                 scalars.push((format!("crack_angle_deg/{name}"), a));
             }
         }
+        let (scene, reference) = (&body.scene, body.reference());
+        metrics::crack_lengths(scene, reference, &damage, scene.spacing, &mut scalars);
         let mut frame = Frame {
             step: self.run.clock.step(),
             time: self.run.clock.time(),

@@ -1,5 +1,5 @@
 //! A dynamic simulation's frame: positions, damage and speed per node, the energies, momentum,
-//! broken bonds, timings, region metrics, probes and crack angles; then what each plug-in and
+//! broken bonds, timings, region metrics, probes, crack angles and lengths; then what each plug-in and
 //! finally the scheme add (the scheme last: a multi-level scheme thins the cloud to its
 //! active levels).
 
@@ -84,6 +84,8 @@ impl<const D: usize> DynamicSimulation<D> {
                 scalars.push((format!("crack_angle_deg/{name}"), a));
             }
         }
+        let spacing = self.scheme.finest_spacing(body);
+        metrics::crack_lengths(scene, reference, &damage, spacing, &mut scalars);
         let mut frame = Frame {
             step: self.run.clock.step(),
             time: self.run.clock.time(),
@@ -140,20 +142,7 @@ impl<const D: usize> DynamicSimulation<D> {
     /// Crack angles `(name, degrees)` of the scene's `[[metrics.crack_angle]]` for `damage`.
     pub(super) fn crack_angles_for(&self, damage: &[f64]) -> Vec<(String, Option<f64>)> {
         let body = &self.body;
-        body.scene
-            .crack_angles
-            .iter()
-            .map(|spec| {
-                let angle = metrics::crack_angle(
-                    spec,
-                    body.reference(),
-                    damage,
-                    body.families(),
-                    self.scheme.finest_spacing(body),
-                    body.scene.horizon,
-                );
-                (spec.name.clone(), angle)
-            })
-            .collect()
+        let spacing = self.scheme.finest_spacing(body);
+        metrics::crack_angles(&body.scene, body.reference(), damage, spacing)
     }
 }
