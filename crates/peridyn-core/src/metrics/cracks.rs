@@ -174,6 +174,23 @@ pub fn crack_lengths<const D: usize>(
     }
 }
 
+/// The frame scalars of the scene's crack measures for `damage`: `crack_angle_deg/<name>`
+/// of each crack found, and `crack_length/<name>` (m) of each length measure.
+pub fn crack_scalars<const D: usize>(
+    scene: &Scene,
+    reference: &[[f64; D]],
+    damage: &[f64],
+    spacing: f64,
+    scalars: &mut Vec<(String, f64)>,
+) {
+    for (name, angle) in crack_angles(scene, reference, damage, spacing) {
+        if let Some(a) = angle {
+            scalars.push((format!("crack_angle_deg/{name}"), a));
+        }
+    }
+    crack_lengths(scene, reference, damage, spacing, scalars);
+}
+
 /// Unit principal axis (largest-variance direction) of a point set, by power iteration on the
 /// covariance matrix: the total-least-squares line direction.
 fn principal_axis<'a>(points: impl Iterator<Item = &'a [f64]> + Clone, dim: usize) -> Vec<f64> {

@@ -5,7 +5,7 @@ pub mod branching;
 pub mod cracks;
 pub mod probes;
 
-pub use cracks::{crack_angle, crack_angles, crack_length, crack_lengths};
+pub use cracks::{crack_angle, crack_angles, crack_length, crack_lengths, crack_scalars};
 
 /// Kinetic energy Σ ½ ρ V |v|² and linear momentum Σ ρ V v.
 pub fn kinetic_energy_and_momentum<const D: usize>(

@@ -251,13 +251,8 @@ impl Stepper for DualHorizonSimulation {
             }
         }
         metrics::damage_counts(&body.scene, body.reference(), &damage, &mut scalars);
-        for (name, angle) in body.crack_angles_for(&damage) {
-            if let Some(a) = angle {
-                scalars.push((format!("crack_angle_deg/{name}"), a));
-            }
-        }
         let (scene, reference) = (&body.scene, body.reference());
-        metrics::crack_lengths(scene, reference, &damage, scene.spacing, &mut scalars);
+        metrics::crack_scalars(scene, reference, &damage, scene.spacing, &mut scalars);
         let mut frame = Frame {
             step: self.run.clock.step(),
             time: self.run.clock.time(),

@@ -79,13 +79,8 @@ impl<const D: usize> DynamicSimulation<D> {
         let density = |i: usize| node_energy[i] / mass_volumes[i].max(f64::MIN_POSITIVE);
         let (reference, positions) = (body.reference(), body.positions());
         probes::probe_scalars(&self.probes, reference, positions, density, &mut scalars);
-        for (name, angle) in self.crack_angles_for(&damage) {
-            if let Some(a) = angle {
-                scalars.push((format!("crack_angle_deg/{name}"), a));
-            }
-        }
         let spacing = self.scheme.finest_spacing(body);
-        metrics::crack_lengths(scene, reference, &damage, spacing, &mut scalars);
+        metrics::crack_scalars(scene, reference, &damage, spacing, &mut scalars);
         let mut frame = Frame {
             step: self.run.clock.step(),
             time: self.run.clock.time(),
