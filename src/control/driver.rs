@@ -180,7 +180,9 @@ impl Driver {
 
     /// Steps of the current run: the scene's, capped by `--steps`.
     pub fn total_steps(&self) -> u64 {
-        let total = self.sim.info().total_steps;
+        // From the clock, not `info()`: this runs every step, and a simulation's notes (an
+        // absorbing layer's stability report) are built when `info()` is asked for.
+        let total = self.sim.run().clock.total_steps();
         self.spec.steps.map_or(total, |cap| cap.min(total))
     }
 
