@@ -18,7 +18,8 @@ impl<const D: usize> Lattice<D> {
         Self::build_anchored(solid, dx, None, perturbation, seed)
     }
 
-    /// [`Self::build`] with the nodes at origin + k·Δx (k integer) when an origin is given.
+    /// [`Self::build`] with the nodes at origin + k·Δx (k integer) when an origin is given,
+    /// computed from k so that they do not depend on the body's extent.
     pub fn build_anchored(
         solid: &Solid,
         dx: f64,
@@ -27,9 +28,15 @@ impl<const D: usize> Lattice<D> {
         seed: u64,
     ) -> Self {
         let (mut lo, hi) = solid.bounds();
+        // With an origin, node k sits at origin + k·Δx exactly (k integer, counted from the
+        // origin), so nested bodies share their common nodes to the last bit.
+        let mut first = [0i64; D];
+        let mut anchor = [0.0; D];
         if let Some(o) = origin {
-            for (l, o) in lo.iter_mut().zip(o) {
-                *l = o + ((*l - o) / dx - 1e-9).ceil() * dx;
+            for a in 0..D {
+                first[a] = ((lo[a] - o[a]) / dx - 1e-9).ceil() as i64;
+                anchor[a] = o[a];
+                lo[a] = o[a] + first[a] as f64 * dx;
             }
         }
         let counts: Vec<usize> = (0..D)
@@ -41,7 +48,11 @@ impl<const D: usize> Lattice<D> {
         'outer: loop {
             let mut x = [0.0; D];
             for a in 0..D {
-                x[a] = lo[a] + index[a] as f64 * dx;
+                x[a] = if origin.is_some() {
+                    anchor[a] + (first[a] + index[a] as i64) as f64 * dx
+                } else {
+                    lo[a] + index[a] as f64 * dx
+                };
             }
             if solid.contains(&x, eps) {
                 positions.push(x);
@@ -160,6 +171,29 @@ mod tests {
         };
         let lattice = Lattice::<2>::build(&plate, 0.25e-3, [0.0; 2], 1);
         assert_eq!(lattice.len(), 321_201);
+    }
+
+    #[test]
+    fn anchored_lattices_of_nested_bodies_share_their_nodes_bit_for_bit() {
+        // Node k of an anchored lattice is origin + k·Δx whatever the body's extent, so a
+        // truncated domain and its large reference carry their common nodes at the same bits
+        // (the lower bound's own rounding would otherwise move them by ulps).
+        let disc = |r: f64| Solid::Sphere {
+            center: vec![0.0, 0.0],
+            radius: r,
+        };
+        let origin = [0.0, 0.0];
+        let small = Lattice::<2>::build_anchored(&disc(0.25), 1e-3, Some(&origin), [0.0; 2], 1);
+        let large = Lattice::<2>::build_anchored(&disc(0.67), 1e-3, Some(&origin), [0.0; 2], 1);
+        let bits = |x: &[f64; 2]| [x[0].to_bits(), x[1].to_bits()];
+        let in_large: std::collections::HashSet<_> = large.positions.iter().map(bits).collect();
+        assert!(small.positions.iter().all(|x| in_large.contains(&bits(x))));
+        for x in &small.positions {
+            for a in 0..2 {
+                let k = (x[a] / 1e-3).round();
+                assert_eq!(x[a].to_bits(), (k * 1e-3).to_bits());
+            }
+        }
     }
 
     #[test]
