@@ -188,11 +188,9 @@ mod tests {
         let bits = |x: &[f64; 2]| [x[0].to_bits(), x[1].to_bits()];
         let in_large: std::collections::HashSet<_> = large.positions.iter().map(bits).collect();
         assert!(small.positions.iter().all(|x| in_large.contains(&bits(x))));
-        for x in &small.positions {
-            for a in 0..2 {
-                let k = (x[a] / 1e-3).round();
-                assert_eq!(x[a].to_bits(), (k * 1e-3).to_bits());
-            }
+        for &c in small.positions.iter().flatten() {
+            let k = (c / 1e-3).round();
+            assert_eq!(c.to_bits(), (k * 1e-3).to_bits());
         }
     }
 

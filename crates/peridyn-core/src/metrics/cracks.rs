@@ -77,6 +77,23 @@ fn crack_nodes<const D: usize>(
     members
 }
 
+/// The crack's nodes (`crack_nodes`) and the direction of their least-squares line; None below
+/// `MIN_NODES` nodes.
+fn crack_line<const D: usize>(
+    search: &Search,
+    reference: &[[f64; D]],
+    damage: &[f64],
+    spacing: f64,
+    horizon: f64,
+) -> Option<(Vec<usize>, Vec<f64>)> {
+    let members = crack_nodes(search, reference, damage, spacing, horizon);
+    if members.len() < MIN_NODES {
+        return None;
+    }
+    let axis = principal_axis(members.iter().map(|&i| &reference[i][..]), D);
+    Some((members, axis))
+}
+
 /// Crack angle in degrees (0–90) between `spec.direction` and the least-squares line through
 /// the damaged nodes (φ ≥ threshold) inside `spec.region` that are connected to the damaged
 /// nodes near `spec.tip`. None if fewer than 5 nodes.
@@ -92,11 +109,7 @@ pub fn crack_angle<const D: usize>(
         threshold: spec.threshold,
         region: &spec.region,
     };
-    let members = crack_nodes(&search, reference, damage, spacing, horizon);
-    if members.len() < MIN_NODES {
-        return None;
-    }
-    let axis = principal_axis(members.iter().map(|&i| &reference[i][..]), D);
+    let (_, axis) = crack_line(&search, reference, damage, spacing, horizon)?;
     let norm = spec.direction.iter().map(|v| v * v).sum::<f64>().sqrt();
     let cos: f64 = axis
         .iter()
@@ -124,11 +137,9 @@ pub fn crack_length<const D: usize>(
         threshold: spec.threshold,
         region: &spec.region,
     };
-    let members = crack_nodes(&search, reference, damage, spacing, horizon);
-    if members.len() < MIN_NODES {
+    let Some((members, axis)) = crack_line(&search, reference, damage, spacing, horizon) else {
         return 0.0;
-    }
-    let axis = principal_axis(members.iter().map(|&i| &reference[i][..]), D);
+    };
     let along = |i: usize| -> f64 {
         (0..D)
             .map(|k| (reference[i][k] - spec.tip[k]) * axis[k])
