@@ -119,6 +119,16 @@ enum Command {
         /// corrosion-3d (1000 steps of the base scene, or `small` to its end).
         #[arg(long, value_name = "VARIANT", num_args = 0..=1, default_missing_value = "medium")]
         hybrid_only: Option<String>,
+        /// The docs' headline speed pairs, end to end: each side a whole `record` process,
+        /// alternated, with the accuracy figure beside each; prints a Markdown table.
+        #[arg(long)]
+        pairs: bool,
+        /// With --pairs: the same comparisons on small variants (seconds each).
+        #[arg(long)]
+        quick: bool,
+        /// With --pairs: alternations per pair (default 2, or 1 with --quick).
+        #[arg(long)]
+        rounds: Option<usize>,
     },
 }
 
@@ -310,11 +320,17 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
             variant,
             schemes_only,
             hybrid_only,
+            pairs,
+            quick,
+            rounds,
         } => cli::bench(&BenchOptions {
             steps,
             variant,
             schemes_only,
             hybrid_only,
+            pairs,
+            quick,
+            rounds,
         }),
     }
 }

@@ -2,6 +2,7 @@
 //! thread and all threads, the share of wall time spent logging, and memory per bond.
 
 pub mod hybrid;
+pub mod pairs;
 pub mod schemes;
 
 use std::sync::Arc;

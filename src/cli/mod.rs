@@ -170,10 +170,34 @@ pub struct BenchOptions {
     pub schemes_only: bool,
     /// Only the hybrid pairs, on this Kalthoff–Winkler variant.
     pub hybrid_only: Option<String>,
+    /// The docs' headline pairs, end to end (`bench::pairs`); small variants when `quick`.
+    pub pairs: bool,
+    pub quick: bool,
+    /// Alternations per pair (default 2; 1 with `quick`).
+    pub rounds: Option<usize>,
 }
 
 /// `peridyn bench`: throughput, WLS against standard, hybrid against standard.
 pub fn bench(options: &BenchOptions) -> Result<ExitCode, Failure> {
+    if options.pairs || options.quick {
+        let rounds = options.rounds.unwrap_or(if options.quick { 1 } else { 2 });
+        if rounds == 0 {
+            return Err(Failure::BadInput(
+                "--rounds: give at least 1 alternation per pair".to_string(),
+            ));
+        }
+        let mut progress = |label: &str| eprintln!("running {label}");
+        let report = bench::pairs::report(options.quick, rounds, &mut progress);
+        println!("{}", report.table);
+        if report.failures > 0 {
+            return Err(Failure::Runtime(format!(
+                "{} of {} pairs failed to run (their rows say why)",
+                report.failures,
+                bench::pairs::PAIRS.len()
+            )));
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
     if let Some(v) = &options.hybrid_only {
         println!("{}", bench::hybrid::report(v).map_err(Failure::Runtime)?);
         return Ok(ExitCode::SUCCESS);

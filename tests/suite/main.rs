@@ -4,6 +4,7 @@
 mod common;
 
 mod architecture;
+mod bench_pairs;
 mod checkpoint;
 mod cli;
 mod clock;

@@ -1,0 +1,37 @@
+//! `peridyn bench --pairs --quick`: the harness that re-measures the docs' headline pairs runs
+//! every pair on its small variants, end to end, and reports a speed-up, the peak memory and
+//! the accuracy figure of each. Its figures are not asserted (speed goals live in the
+//! benchmark's reports); that every pair runs and reads its accuracy scalars is.
+
+use peridyn::bench::pairs::PAIRS;
+
+use crate::common::peridyn;
+
+#[test]
+fn quick_pairs_run_end_to_end_and_report_every_figure() {
+    let out = peridyn(&["bench", "--pairs", "--quick"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}\n{stdout}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("| ") && l.contains("`)"))
+        .collect();
+    assert_eq!(rows.len(), PAIRS.len(), "one row per pair:\n{stdout}");
+    for (row, pair) in rows.iter().zip(PAIRS) {
+        assert!(row.contains(pair.preset), "{row}");
+        let cells: Vec<&str> = row.split(" | ").collect();
+        let speed_up: f64 = cells[4].trim_end_matches('×').parse().unwrap_or(f64::NAN);
+        assert!(speed_up.is_finite() && speed_up > 0.0, "speed-up: {row}");
+        if cfg!(unix) {
+            assert!(!cells[5].contains('–'), "peak memory: {row}");
+        }
+        assert!(
+            !row.contains("not reported") && !row.contains("no crack found"),
+            "accuracy scalar missing: {row}"
+        );
+    }
+}
