@@ -60,6 +60,9 @@ const S11_LARGE: &[&str] = &[
     "absorbing=false",
 ];
 
+/// `--quick`'s multi-adaptive pair: the small variants to 45 µs (the cracks have started).
+const QUICK_KW_MULTIGRID: &[&str] = &["time.end=\"45 us\""];
+
 /// The pairs of the README's headline table and docs/validation.md's speed sections, each side
 /// at the Δt its preset gives it.
 pub const PAIRS: &[Pair] = &[
@@ -77,8 +80,8 @@ pub const PAIRS: &[Pair] = &[
         fast: with("", &["time.end=\"100 s\""]),
         baseline: with("standard", &["time.end=\"100 s\""]),
         quick: [
-            with("small", &["time.end=\"300 s\""]),
-            with("small-standard", &["time.end=\"300 s\""]),
+            with("small", &["time.end=\"50 s\""]),
+            with("small-standard", &["time.end=\"50 s\""]),
         ],
         accuracy: &[Accuracy::Absolute("relative volume loss")],
     },
@@ -87,7 +90,10 @@ pub const PAIRS: &[Pair] = &[
         preset: "kalthoff-winkler-multigrid",
         fast: side("full-band-hybrid"),
         baseline: side("full-band-fine"),
-        quick: [side("small-hybrid-fast"), side("small-fine")],
+        quick: [
+            with("small-hybrid-fast", QUICK_KW_MULTIGRID),
+            with("small-fine", QUICK_KW_MULTIGRID),
+        ],
         accuracy: &[
             Accuracy::Relative("energy/circle/upper_tip"),
             Accuracy::Angle("upper"),
@@ -100,8 +106,8 @@ pub const PAIRS: &[Pair] = &[
         fast: side(""),
         baseline: side("fine"),
         quick: [
-            with("small", &["time.end=\"18000 s\""]),
-            with("small-fine", &["time.end=\"18000 s\""]),
+            with("small", &["time.end=\"1800 s\""]),
+            with("small-fine", &["time.end=\"1800 s\""]),
         ],
         accuracy: &[Accuracy::Absolute("relative volume loss")],
     },
@@ -111,8 +117,8 @@ pub const PAIRS: &[Pair] = &[
         fast: side(""),
         baseline: side("fine"),
         quick: [
-            with("small", &["time.end=\"12 h\""]),
-            with("small-fine", &["time.end=\"12 h\""]),
+            with("small", &["time.end=\"3 h\""]),
+            with("small-fine", &["time.end=\"3 h\""]),
         ],
         accuracy: &[Accuracy::Absolute("relative volume loss")],
     },
@@ -121,7 +127,10 @@ pub const PAIRS: &[Pair] = &[
         preset: "abc-corrosion-2d",
         fast: side("scaled"),
         baseline: side("scaled-reference"),
-        quick: [side("small"), side("small-reference")],
+        quick: [
+            with("small", &["time.end=\"0.02 s\""]),
+            with("small-reference", &["time.end=\"0.02 s\""]),
+        ],
         accuracy: &[Accuracy::Elsewhere(
             "the node-by-node error of the frames: docs/validation.md, S2",
         )],
@@ -131,7 +140,10 @@ pub const PAIRS: &[Pair] = &[
         preset: "half-space-impact",
         fast: side(""),
         baseline: with("", S11_LARGE),
-        quick: [side("small"), side("small-reference")],
+        quick: [
+            with("small", &["time.end=\"30 us\""]),
+            with("small-reference", &["time.end=\"30 us\""]),
+        ],
         accuracy: &[
             Accuracy::Relative("crack_length/right"),
             Accuracy::Angle("right"),
