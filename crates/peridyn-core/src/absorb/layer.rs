@@ -80,6 +80,18 @@ pub struct AbsorbingLayer {
     /// not on the rates' (the fitted modes' V_H·H^n).
     pub rates_from_field: bool,
     pub reports: Vec<NodeReport>,
+    /// `growth()`, computed on first use (an eigenproblem per node and quantity) and kept
+    /// until a node is pushed: every `info()` of a run reports it.
+    growth: std::sync::OnceLock<Growth>,
+}
+
+/// The largest spectral radius of the absorbing nodes' own recurrences (`own_growth`), the
+/// node it occurs at and how many nodes exceed 1.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Growth {
+    pub worst: f64,
+    pub node: u32,
+    pub above_one: usize,
 }
 
 /// The fitted rows of one quantity, one per output component c: V_c = ψ_c(0, Δt) M⁺, M's rows
@@ -204,12 +216,14 @@ impl AbsorbingLayer {
             rate_weights: Vec::new(),
             rates_from_field: false,
             reports: Vec::new(),
+            growth: std::sync::OnceLock::new(),
         }
     }
 
     /// Appends absorbing node `node` with its cloud and weights (`levels · components²` per
     /// cloud entry, laid out as `value_weights` says; `rate` empty with one level).
     pub fn push(&mut self, node: u32, cloud: &[u32], value: &[f64], rate: &[f64], r: NodeReport) {
+        self.growth = std::sync::OnceLock::new();
         let per_entry = self.levels() * self.components * self.components;
         debug_assert_eq!(value.len(), cloud.len() * per_entry);
         debug_assert!(rate.is_empty() || rate.len() == value.len());
@@ -296,6 +310,24 @@ impl AbsorbingLayer {
     pub fn own_growth(&self, a: usize) -> f64 {
         self.own_radius(&self.value_weights, a)
             .max(self.own_radius(&self.rate_weights, a))
+    }
+
+    /// `own_growth` over the layer (computed once per fit).
+    pub fn growth(&self) -> Growth {
+        *self.growth.get_or_init(|| {
+            let growth: Vec<f64> = (0..self.nodes.len()).map(|a| self.own_growth(a)).collect();
+            let (at, worst) = growth
+                .iter()
+                .copied()
+                .enumerate()
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .unwrap_or((0, 0.0));
+            Growth {
+                worst,
+                node: self.nodes.get(at).copied().unwrap_or(0),
+                above_one: growth.iter().filter(|&&g| g > 1.0 + 1e-12).count(),
+            }
+        })
     }
 
     /// The largest ‖V‖ and cond(M) over the layer, and the node they occur at.

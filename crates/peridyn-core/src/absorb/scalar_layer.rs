@@ -352,20 +352,10 @@ impl<const D: usize> Absorber<D> {
                 self.spec.tikhonov
             ),
             {
-                let growth: Vec<f64> = (0..self.layer.nodes.len())
-                    .map(|a| self.layer.own_growth(a))
-                    .collect();
-                let (at, worst) = growth
-                    .iter()
-                    .copied()
-                    .enumerate()
-                    .max_by(|a, b| a.1.total_cmp(&b.1))
-                    .unwrap_or((0, 0.0));
+                let growth = self.layer.growth();
                 format!(
                     "absorbing layer: own recurrence |z|max = {:.6} at node {} ({} nodes above 1)",
-                    worst,
-                    self.layer.nodes.get(at).copied().unwrap_or(0),
-                    growth.iter().filter(|&&g| g > 1.0 + 1e-12).count()
+                    growth.worst, growth.node, growth.above_one
                 )
             },
         ]
