@@ -140,6 +140,13 @@ fn a_splitting_dual_horizon_run_resumes_bit_for_bit() {
     );
 }
 
+/// A multi-adaptive run whose switch refined cells before its last checkpoint (and after it)
+/// resumes bit for bit: the checkpoint replays the refinements on the fresh levels.
+#[test]
+fn a_multi_adaptive_run_resumes_bit_for_bit() {
+    resumes_bit_for_bit("kalthoff-winkler-multigrid", "small", 150, None);
+}
+
 #[test]
 fn a_corrosion_run_resumes_bit_for_bit() {
     resumes_bit_for_bit("corrosion-1d", "small", 150, None);

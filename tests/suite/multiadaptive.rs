@@ -6,7 +6,9 @@
 //! classification from scratch, and the physics must match the uniform fine run (crack
 //! angles, the energy in the 10 mm circle at the upper tip, the thesis's Fig. 3.35).
 
+use peridyn::discretization::{Families, family};
 use peridyn::scene::Scene;
+use peridyn::scheme::standard::{NodeTerms, Standard};
 use peridyn::sim::{self, DynamicSimulation};
 use peridyn::solver::Stepper;
 
@@ -93,6 +95,7 @@ fn multi_adaptive_run(variant: &str) -> Vec<Sample> {
     };
     let area = body(&multi);
     let run = samples(&mut multi);
+    assert_the_fine_level_is_where_it_is_used(&multi);
     let g = multi.multigrid().unwrap();
     let classes_agree = g.classes_from_scratch(multi.families()) == g.class;
     let tiling = (body(&multi) / area - 1.0).abs();
@@ -127,6 +130,35 @@ fn multi_adaptive_run(variant: &str) -> Vec<Sample> {
     let n = multi.volumes().len() as f64;
     assert!(tiling < n * f64::EPSILON, "{tiling:e}");
     run
+}
+
+/// The fine level holds only the nodes in use: every fine node that is not active lies in the
+/// family of an active fine node (within one horizon of a refined cell), and the level holds
+/// fewer nodes than the whole fine lattice.
+fn assert_the_fine_level_is_where_it_is_used(sim: &DynamicSimulation<2>) {
+    let g = sim.multigrid().unwrap();
+    let families = sim.families();
+    let mut in_a_family = vec![false; g.class.len()];
+    for (i, _) in g.fine_nodes().filter(|&(i, _)| g.class[i].is_active()) {
+        for b in families.range(i) {
+            in_a_family[families.neighbors[b] as usize] = true;
+        }
+    }
+    let fine: Vec<usize> = g.fine_nodes().map(|(i, _)| i).collect();
+    let stray = fine
+        .iter()
+        .filter(|&&i| !g.class[i].is_active() && !in_a_family[i])
+        .count();
+    assert_eq!(
+        stray, 0,
+        "fine nodes farther than one horizon from a refined cell"
+    );
+    let lattice = g.fine_lattice().len();
+    eprintln!(
+        "fine level: {} nodes of the lattice's {lattice}",
+        fine.len()
+    );
+    assert!(fine.len() < lattice, "{} of {lattice}", fine.len());
 }
 
 /// Runs the multi-adaptive variants against their uniform fine and coarse references and
@@ -446,4 +478,151 @@ fn scaled_full_band_runs_meet_the_energy_bound() {
         "full-band-coarse",
         true,
     );
+}
+
+/// Cells refined mid-run give the forces of a fine level built whole: after 120 steps of
+/// `small` (cells refined by the switch), every active fine node's family is its family in
+/// `Families::build` over the whole fine lattice (the same neighbours in the same order, the
+/// same lengths bit for bit), and the standard scheme over that whole level, at the run's
+/// positions and bond states, gives every active fine node the run's force to 1e-12 of the
+/// largest.
+#[test]
+fn refining_mid_run_gives_the_forces_of_a_level_built_whole() {
+    let scene = scene("small");
+    let mut sim = DynamicSimulation::<2>::new(&scene).unwrap();
+    for _ in 0..120 {
+        sim.step().unwrap();
+    }
+    let g = sim.multigrid().unwrap();
+    assert!(g.refined_by_switch > 0, "no cell refined by the switch yet");
+    let lattice = g.fine_lattice();
+    let radius = family::search_radius(scene.family_radius, scene.horizon, g.fine.spacing);
+    let whole = Families::build(lattice, radius);
+    let mut key_of = vec![u32::MAX; g.class.len()];
+    let mut positions = lattice.to_vec();
+    for (i, k) in g.fine_nodes() {
+        key_of[i] = k;
+        positions[k as usize] = sim.positions()[i];
+    }
+    let families = sim.families();
+    let mut intact = vec![1u8; whole.bond_count()];
+    let mut skip = vec![1u8; lattice.len()];
+    let active: Vec<(usize, u32)> = g
+        .fine_nodes()
+        .filter(|&(i, _)| g.class[i].is_active())
+        .collect();
+    for &(i, k) in &active {
+        let k = k as usize;
+        skip[k] = 0;
+        let row: Vec<u32> = families.neighbors[families.range(i)]
+            .iter()
+            .map(|&j| key_of[j as usize])
+            .collect();
+        assert_eq!(row, whole.neighbors[whole.range(k)], "family of node {i}");
+        let bits = |l: &[f64]| l.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(families.row_lengths(i)), bits(whole.row_lengths(k)));
+        for (bw, bl) in whole.range(k).zip(families.range(i)) {
+            intact[bw] = sim.intact[bl];
+        }
+    }
+    let volume = g.fine.spacing.powi(2);
+    let volumes = vec![volume; lattice.len()];
+    let level = Standard {
+        reference: lattice,
+        volumes: &volumes,
+        uniform_volume: Some(volume),
+        families: &whole,
+        law: &sim.law,
+        quadrature: &g.fine,
+    };
+    let mut terms = vec![NodeTerms::default(); lattice.len()];
+    level.forces_masked(&positions, &mut intact, &mut terms, Some(&skip), false);
+    let run = sim.force_density();
+    let norm = |f: [f64; 2]| (f[0] * f[0] + f[1] * f[1]).sqrt();
+    let largest = active
+        .iter()
+        .map(|&(i, _)| norm(run[i]))
+        .fold(0.0, f64::max);
+    let worst = active
+        .iter()
+        .map(|&(i, k)| {
+            let w = terms[k as usize].force;
+            norm([run[i][0] - w[0], run[i][1] - w[1]])
+        })
+        .fold(0.0, f64::max);
+    eprintln!(
+        "{} active fine nodes: largest force difference {:.2e} of the largest force",
+        active.len(),
+        worst / largest
+    );
+    assert!(
+        largest > 0.0 && worst <= 1e-12 * largest,
+        "{worst:e} of {largest:e}"
+    );
+}
+
+/// The stable step's bound from the levels' lattice symbols covers the coupled operator: the
+/// spectral radius (Arnoldi) of the linearized operator per unit mass with the fictitious
+/// nodes interpolated from the other level lies below the bound, and within 3 % of it, at
+/// the start and after the switch has refined cells.
+#[test]
+fn the_levels_symbol_bound_covers_the_coupled_operator() {
+    let mut sim = DynamicSimulation::<2>::new(&scene("small")).unwrap();
+    let check = |sim: &DynamicSimulation<2>, when: &str| {
+        let (bound, radius) = sim.multigrid_stability().unwrap();
+        eprintln!(
+            "{when}: coupled radius {radius:.6e}, bound {bound:.6e} ({:.4})",
+            radius / bound
+        );
+        assert!(
+            radius <= bound && bound <= 1.03 * radius,
+            "{when}: {radius:e} against {bound:e}"
+        );
+    };
+    check(&sim, "start");
+    for _ in 0..150 {
+        sim.step().unwrap();
+    }
+    assert!(sim.multigrid().unwrap().refined_by_switch > 0);
+    check(&sim, "after 150 steps");
+}
+
+/// The fine level built where it is used gives the fields of the level built whole: at one
+/// Δt (3.3e-7 s: the stable step's estimate changed with it), the final-field hashes of the
+/// build that made the whole fine level up front (2026-12-07, before the change).
+#[test]
+fn the_fine_level_built_on_demand_leaves_the_fields_unchanged() {
+    let cases = [
+        (
+            "small",
+            "positions a09c9cc65846b7bc, damage 231a8e7453edfc09, velocity 5157fd6636b88c67, \
+             grid 8159fcae21bad347",
+        ),
+        (
+            "small-hybrid",
+            "positions e49462b6c7d1e12b, damage 679fa2a1fe37dfd9, velocity a3e49dc4e9b1ab47, \
+             grid fff22dadf2d06be6",
+        ),
+    ];
+    for (variant, hashes) in cases {
+        let out = crate::common::temp("multiadaptive", &format!("{variant}.rrd"));
+        let run = crate::common::peridyn(&[
+            "record",
+            PRESET,
+            "--variant",
+            variant,
+            "--set",
+            "time.dt=\"3.3e-7 s\"",
+            "-q",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        let stdout = String::from_utf8_lossy(&run.stdout);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        assert!(stdout.contains(hashes), "{variant}: {stdout}");
+    }
 }

@@ -61,23 +61,32 @@ pub struct Frame {
 impl Frame {
     /// Keeps the nodes whose `keep` entry is set, in every per-node array.
     pub fn retain_nodes(&mut self, keep: &[bool]) {
-        fn filter<T: Copy>(values: &[T], keep: &[bool], per_node: usize) -> Vec<T> {
-            values
-                .chunks_exact(per_node)
-                .zip(keep)
-                .filter(|(_, k)| **k)
-                .flat_map(|(v, _)| v.iter().copied())
+        let order: Vec<u32> = (0..keep.len() as u32)
+            .filter(|&i| keep[i as usize])
+            .collect();
+        self.select_nodes(&order);
+    }
+
+    /// Keeps the nodes `order` lists, in that order, in every per-node array.
+    pub fn select_nodes(&mut self, order: &[u32]) {
+        fn pick<T: Copy>(values: &[T], order: &[u32], per_node: usize) -> Vec<T> {
+            order
+                .iter()
+                .flat_map(|&i| {
+                    let i = i as usize * per_node;
+                    values[i..i + per_node].iter().copied()
+                })
                 .collect()
         }
-        self.positions = filter(&self.positions, keep, self.dim);
+        self.positions = pick(&self.positions, order, self.dim);
         for f in &mut self.fields {
-            f.values = filter(&f.values, keep, 1);
+            f.values = pick(&f.values, order, 1);
         }
         for c in &mut self.classes {
-            c.ids = filter(&c.ids, keep, 1);
+            c.ids = pick(&c.ids, order, 1);
         }
         if !self.radii.is_empty() {
-            self.radii = filter(&self.radii, keep, 1);
+            self.radii = pick(&self.radii, order, 1);
         }
     }
 

@@ -22,6 +22,18 @@
 //!   [inferred]);
 //! - the fine level only grows: fine nodes are never deactivated (the thesis's Table 3.8 shows
 //!   Ω⁻ growing and Ω⁺ shrinking only).
+//!
+//! The fine level is built where it is used, not over the whole body: a fine node exists once
+//! its cell is refined (active, with its family) or once it falls in an active fine node's
+//! family (fictitious, without a family of its own: its row is never evaluated). A cell that
+//! refines appends its rᵈ nodes with their families and the nodes of their families not yet
+//! there (`Growth`); a fictitious node that becomes active is appended anew with its family and
+//! its old entry retired (class inactive, in no family: the families that held it point to the
+//! new entry), so the rows stay in node order, each row in lattice order. Every row, length,
+//! transfer weight and force is the one a level built whole gives (families from the same k-d
+//! tree query over the whole fine lattice's positions, sorted by lattice index, lengths
+//! snapped to the same shortest bond), so the fields are the same bit for bit; frames list
+//! the nodes in lattice order, coarse first.
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
@@ -59,9 +71,12 @@ impl std::fmt::Display for RefineEvent {
     }
 }
 
-/// The two levels' nodes, laid out as all coarse nodes first, then the fine sub-cells of coarse
-/// node c at `coarse_count + c·rᵈ + k`.
-#[derive(Debug, Clone)]
+/// No node (a fine lattice point not built yet).
+const NONE: u32 = u32::MAX;
+
+/// The two levels' nodes: all coarse nodes first, then the fine nodes built so far. A fine
+/// lattice point has a key, `c·rᵈ + k` for sub-cell k of coarse cell c; the transfer weights
+/// name their sources by lattice id (a coarse node's index, or `coarse_count` + a fine key).
 pub struct MultiAdaptive<const D: usize> {
     pub ratio: usize,
     pub coarse_count: usize,
@@ -71,7 +86,8 @@ pub struct MultiAdaptive<const D: usize> {
     /// Per coarse node: its cell is refined.
     refined: Vec<bool>,
     pub rows: LevelRows,
-    /// Every node's IDW sources on the other level: `sources[offsets[i]..offsets[i + 1]]`.
+    /// Every node's IDW sources on the other level (lattice ids): `sources[offsets[i]..
+    /// offsets[i + 1]]`.
     offsets: Vec<usize>,
     sources: Vec<u32>,
     weights: Vec<f64>,
@@ -85,6 +101,139 @@ pub struct MultiAdaptive<const D: usize> {
     events: Vec<RefineEvent>,
     /// Coarse cells refined by the switch so far (not counting the initial band).
     pub refined_by_switch: u64,
+    lattice: FineLattice<D>,
+    /// Per fine key: its node, or `NONE`.
+    node_of: Vec<u32>,
+    /// Per fine node (index − `coarse_count`): its key (a retired entry keeps it).
+    key_of: Vec<u32>,
+    /// The cells of each refinement by the switch, in order (a checkpoint replays them).
+    log: Vec<Vec<u32>>,
+}
+
+/// Where fine nodes can be: the whole fine lattice as positions (by key), and what gives a new
+/// node its family and its transfer weights.
+struct FineLattice<const D: usize> {
+    positions: Vec<[f64; D]>,
+    coarse: Vec<[f64; D]>,
+    coarse_tree: ImmutableKdTree<f64, D>,
+    /// rᵈ: fine points per coarse cell.
+    cells: usize,
+    /// The fine families' squared search radius.
+    radius2: f64,
+    /// The squared distance between coarse nodes within which their cells' fine points can
+    /// be within the search radius of each other: (radius + Δx⁺√D)², rounded up.
+    cell_reach2: f64,
+    coarse_spacing: f64,
+    volume: f64,
+    transfer: Transfer,
+}
+
+impl<const D: usize> FineLattice<D> {
+    /// The coarse cells whose fine points can lie within the search radius of a fine point of
+    /// cell c (c included), ascending.
+    fn cells_near(&self, c: usize) -> Vec<u32> {
+        let mut near: Vec<u32> = self
+            .coarse_tree
+            .query(&self.coarse[c])
+            .within::<SquaredEuclidean<f64>>(self.cell_reach2)
+            .unsorted()
+            .execute()
+            .iter()
+            .map(|n| n.item)
+            .collect();
+        near.sort_unstable();
+        near
+    }
+
+    /// The family of fine point `key` among the fine points of `cells` (ascending, covering
+    /// its reach): neighbor keys ascending and their lengths. The same as a k-d tree query
+    /// over the whole fine lattice gives (`Families::build`): the squared distance summed
+    /// axis by axis from zero as kiddo sums it, compared with the same radius.
+    fn family_among(&self, key: u32, cells: &[u32]) -> (Vec<u32>, Vec<f64>) {
+        let p = &self.positions[key as usize];
+        let (mut keys, mut lengths) = (Vec::new(), Vec::new());
+        for &c in cells {
+            let first = c * self.cells as u32;
+            for k in first..first + self.cells as u32 {
+                let q = &self.positions[k as usize];
+                let mut squared = 0.0;
+                for a in 0..D {
+                    let d = q[a] - p[a];
+                    squared += d * d;
+                }
+                if squared <= self.radius2 && k != key {
+                    keys.push(k);
+                    lengths.push(squared.sqrt());
+                }
+            }
+        }
+        (keys, lengths)
+    }
+
+    /// The family of fine point `key` (see [`Self::family_among`]).
+    fn family(&self, key: u32) -> (Vec<u32>, Vec<f64>) {
+        self.family_among(key, &self.cells_near(key as usize / self.cells))
+    }
+
+    /// The families of the fine points of coarse cells `cells`, cell by cell, in key order.
+    fn families_of_cells(&self, cells: &[usize]) -> Vec<(Vec<u32>, Vec<f64>)> {
+        cells
+            .par_iter()
+            .flat_map_iter(|&c| {
+                let near = self.cells_near(c);
+                let first = (c * self.cells) as u32;
+                (first..first + self.cells as u32)
+                    .map(move |k| self.family_among(k, &near))
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    }
+
+    /// The transfer weights of fine point `key` from the coarse level (lattice ids).
+    fn weights(&self, key: u32) -> Vec<(u32, f64)> {
+        let x = &self.positions[key as usize];
+        match self.transfer {
+            Transfer::Idw => idw(&self.coarse_tree, x, 1 << D, 0),
+            Transfer::Multilinear => {
+                multilinear(&self.coarse_tree, &self.coarse, x, self.coarse_spacing)
+            }
+        }
+    }
+}
+
+/// The shortest bond of a whole level on `points` (each point's nearest other point in
+/// `tree`), the unit its families' lengths are snapped to.
+fn shortest_bond<const D: usize>(points: &[[f64; D]], tree: &ImmutableKdTree<f64, D>) -> f64 {
+    let two = std::num::NonZero::new(2).expect("2 ≥ 1");
+    points
+        .par_iter()
+        .map(|x| {
+            tree.query(x)
+                .nearest_n::<SquaredEuclidean<f64>>(two)
+                .execute()
+                .iter()
+                .map(|n| n.distance)
+                .filter(|&d| d > 0.0)
+                .fold(f64::INFINITY, f64::min)
+        })
+        .reduce(|| f64::INFINITY, f64::min)
+        .sqrt()
+}
+
+/// New fine nodes of a refinement, for the body to append (`ElasticBody::grow`): their
+/// reference positions, each one's family (empty for a fictitious node) as node indices and
+/// lengths, and the bonds of present families that now point to a re-entered node.
+pub struct Growth<const D: usize> {
+    pub reference: Vec<[f64; D]>,
+    pub volume: f64,
+    pub rows: Vec<(Vec<u32>, Vec<f64>)>,
+    /// (bond, new neighbor).
+    pub rewrites: Vec<(usize, u32)>,
+    /// The nodes that become active (their families are in `rows`).
+    pub activated: Vec<u32>,
+    /// The cells refined.
+    cells: Vec<usize>,
+    critical_bonds: usize,
 }
 
 /// What `MultiAdaptive::build` hands to the discretization: every node of both levels.
@@ -165,7 +314,8 @@ fn multilinear<const D: usize>(
 }
 
 impl<const D: usize> MultiAdaptive<D> {
-    /// Both levels of `scene` over the whole body, refined within the spec's band.
+    /// Both levels of `scene`: the coarse level over the whole body, the fine level over the
+    /// cells refined within the spec's band and the fictitious nodes around them.
     pub fn build(scene: &Scene, spec: &MultigridSpec) -> Result<(Self, Levels<D>), SceneError> {
         let Refinement::Adaptive {
             band,
@@ -191,56 +341,32 @@ impl<const D: usize> MultiAdaptive<D> {
             .collect();
         let coarse_radius = family::search_radius(scene.family_radius, delta, dx);
         let fine_radius = family::search_radius(scene.family_radius, delta, fine_dx);
-        let families = Families::concat(
-            &Families::build(&coarse, coarse_radius),
-            &Families::build(&fine, fine_radius),
-        );
-        // IDW sources of every node on the other level, once: the lattices never move.
-        let n = 1usize << D;
         let (coarse_tree, fine_tree) = (
             tree(&coarse).expect("the lattice holds nodes"),
             tree(&fine).expect("the lattice holds nodes"),
         );
-        let pairs: Vec<Vec<(u32, f64)>> = coarse
+        // A refined coarse node takes the IDW of its nearest fine points (its sub-cells).
+        let coarse_weights: Vec<Vec<(u32, f64)>> = coarse
             .par_iter()
-            .map(|x| idw(&fine_tree, x, n, coarse_count as u32))
-            .chain(fine.par_iter().map(|x| match transfer {
-                Transfer::Idw => idw(&coarse_tree, x, n, 0),
-                Transfer::Multilinear => multilinear(&coarse_tree, &coarse, x, dx),
-            }))
+            .map(|x| idw(&fine_tree, x, 1 << D, coarse_count as u32))
             .collect();
-        let mut offsets = Vec::with_capacity(pairs.len() + 1);
-        offsets.push(0);
-        let (mut sources, mut weights) = (Vec::new(), Vec::new());
-        for p in &pairs {
-            for &(s, w) in p {
-                sources.push(s);
-                weights.push(w);
-            }
-            offsets.push(sources.len());
-        }
         let refined: Vec<bool> =
             hybrid::initial_mask(&coarse, &scene.solid, &scene.precracks, band, dx)
                 .into_iter()
                 .map(|c| c == SchemeClass::Standard)
                 .collect();
-        let volumes: Vec<f64> = std::iter::repeat_n(dx.powi(D as i32), coarse_count)
-            .chain(std::iter::repeat_n(fine_dx.powi(D as i32), fine.len()))
-            .collect();
-        let mut positions = coarse;
-        positions.extend_from_slice(&fine);
-        let total = positions.len();
+        let coarse_families = Families::build(&coarse, coarse_radius);
         let quadrature = Quadrature::of_scene(scene);
         let mut grid = MultiAdaptive {
             ratio: r,
             coarse_count,
             cells,
-            class: vec![GridClass::CoarseActive; total],
+            class: vec![GridClass::CoarseActive; coarse_count],
             refined,
             rows: LevelRows::default(),
-            offsets,
-            sources,
-            weights,
+            offsets: vec![0],
+            sources: Vec::new(),
+            weights: Vec::new(),
             interpolated: Vec::new(),
             scratch: Vec::new(),
             chi,
@@ -251,7 +377,36 @@ impl<const D: usize> MultiAdaptive<D> {
             },
             events: Vec::new(),
             refined_by_switch: 0,
+            lattice: FineLattice {
+                positions: fine,
+                coarse,
+                coarse_tree,
+                cells,
+                radius2: fine_radius * fine_radius,
+                cell_reach2: ((fine_radius + dx * (D as f64).sqrt()) * (1.0 + 1e-9)).powi(2),
+                coarse_spacing: dx,
+                volume: fine_dx.powi(D as i32),
+                transfer,
+            },
+            node_of: Vec::new(),
+            key_of: Vec::new(),
+            log: Vec::new(),
         };
+        grid.node_of = vec![NONE; grid.lattice.positions.len()];
+        grid.push_weights(coarse_weights);
+        // The lengths of both levels snapped to the fine level's shortest bond, as the union
+        // of two whole levels' families would snap them.
+        let unit = shortest_bond(&grid.lattice.positions, &fine_tree);
+        drop(fine_tree);
+        let mut families = coarse_families.resnapped(unit);
+        let initial: Vec<usize> = (0..coarse_count).filter(|&c| grid.refined[c]).collect();
+        let growth = grid.grow(&initial, &families);
+        families.append_rows(&growth.rows);
+        let mut positions = grid.lattice.coarse.clone();
+        positions.extend_from_slice(&growth.reference);
+        let volumes: Vec<f64> = std::iter::repeat_n(dx.powi(D as i32), coarse_count)
+            .chain(std::iter::repeat_n(growth.volume, growth.reference.len()))
+            .collect();
         grid.classify(&families);
         Ok((
             grid,
@@ -263,37 +418,163 @@ impl<const D: usize> MultiAdaptive<D> {
         ))
     }
 
+    /// Appends transfer weights, one node's per entry.
+    fn push_weights(&mut self, per_node: Vec<Vec<(u32, f64)>>) {
+        for p in per_node {
+            for (s, w) in p {
+                self.sources.push(s);
+                self.weights.push(w);
+            }
+            self.offsets.push(self.sources.len());
+        }
+    }
+
+    /// The node of lattice id `s` (a coarse index, or `coarse_count` + a fine key).
+    fn node(&self, s: u32) -> usize {
+        let s = s as usize;
+        if s < self.coarse_count {
+            s
+        } else {
+            self.node_of[s - self.coarse_count] as usize
+        }
+    }
+
+    /// The fine key of fine node `i`.
+    fn key(&self, i: usize) -> u32 {
+        self.key_of[i - self.coarse_count]
+    }
+
+    /// Whether fine node `i` was replaced by a new entry (its cell refined after it was made
+    /// fictitious).
+    fn retired(&self, i: usize) -> bool {
+        i >= self.coarse_count && self.node_of[self.key(i) as usize] as usize != i
+    }
+
     /// The coarse cell a node belongs to (itself for a coarse node).
     fn cell_of(&self, i: usize) -> usize {
         if i < self.coarse_count {
             i
         } else {
-            (i - self.coarse_count) / self.cells
+            self.key(i) as usize / self.cells
         }
     }
 
-    /// The fine nodes of coarse cell `c`.
-    fn fine_of(&self, c: usize) -> std::ops::Range<usize> {
-        let first = self.coarse_count + c * self.cells;
-        first..first + self.cells
+    /// The fine keys of coarse cell `c`.
+    fn keys_of(&self, c: usize) -> std::ops::Range<u32> {
+        let first = (c * self.cells) as u32;
+        first..first + self.cells as u32
     }
 
-    /// Every node's class from the refined cells: active by the cell's state, fictitious where
-    /// a family neighbour (same level) is active, inactive otherwise.
-    fn classify(&mut self, families: &Families) {
-        let active: Vec<bool> = (0..self.class.len())
+    /// The fine nodes for `cells` (just refined): each of their rᵈ points is entered anew
+    /// with its family (a fictitious entry it had is retired), and the points of those
+    /// families not built yet are entered as fictitious nodes, all with their transfer
+    /// weights; `families` (the present ones) give the bonds to re-point. The new nodes are
+    /// numbered from `self.class.len()` on, the newly active ones first.
+    fn grow(&mut self, cells: &[usize], families: &Families) -> Growth<D> {
+        let active: Vec<u32> = cells.iter().flat_map(|&c| self.keys_of(c)).collect();
+        let rows = self.lattice.families_of_cells(cells);
+        // The points of the new families not built yet, each once (`taken`: new already).
+        let mut taken = vec![false; self.node_of.len()];
+        for &k in &active {
+            taken[k as usize] = true;
+        }
+        let mut ring = Vec::new();
+        for &k in rows.iter().flat_map(|(keys, _)| keys) {
+            if self.node_of[k as usize] == NONE && !std::mem::replace(&mut taken[k as usize], true)
+            {
+                ring.push(k);
+            }
+        }
+        ring.sort_unstable();
+        let old: Vec<u32> = active.iter().map(|&k| self.node_of[k as usize]).collect();
+        let first = self.class.len();
+        for (n, &k) in active.iter().chain(&ring).enumerate() {
+            self.node_of[k as usize] = (first + n) as u32;
+            self.key_of.push(k);
+        }
+        // Present families that held a re-entered node's old entry: those of its active
+        // neighbors, each row in key order.
+        let this = &*self;
+        let rewrites: Vec<(usize, u32)> = (0..active.len())
             .into_par_iter()
-            .map(|i| (i < self.coarse_count) != self.refined[self.cell_of(i)])
+            .filter(|&a| old[a] != NONE)
+            .flat_map_iter(|a| {
+                let k = active[a];
+                rows[a].0.iter().filter_map(move |&nk| {
+                    let j = this.node_of[nk as usize] as usize;
+                    if j >= first || this.class[j] != GridClass::FineActive {
+                        return None;
+                    }
+                    let row = &families.neighbors[families.range(j)];
+                    let at = row
+                        .binary_search_by_key(&k, |&m| this.key(m as usize))
+                        .expect("an active fine node's family holds every fine node within δ");
+                    Some((families.offsets[j] + at, this.node_of[k as usize]))
+                })
+            })
+            .collect();
+        for &o in old.iter().filter(|&&o| o != NONE) {
+            self.class[o as usize] = GridClass::FineInactive;
+        }
+        let node_of = &self.node_of;
+        let mut rows: Vec<(Vec<u32>, Vec<f64>)> = rows
+            .into_par_iter()
+            .map(|(keys, lengths)| (keys.iter().map(|&k| node_of[k as usize]).collect(), lengths))
+            .collect();
+        rows.resize(rows.len() + ring.len(), (Vec::new(), Vec::new()));
+        let new: Vec<u32> = active.iter().chain(&ring).copied().collect();
+        let lattice = &self.lattice;
+        let weights: Vec<Vec<(u32, f64)>> = new.par_iter().map(|&k| lattice.weights(k)).collect();
+        self.push_weights(weights);
+        self.class
+            .extend(std::iter::repeat_n(GridClass::FineInactive, new.len()));
+        Growth {
+            reference: new
+                .iter()
+                .map(|&k| self.lattice.positions[k as usize])
+                .collect(),
+            volume: self.lattice.volume,
+            rows,
+            rewrites,
+            activated: (first..first + active.len()).map(|i| i as u32).collect(),
+            cells: cells.to_vec(),
+            critical_bonds: 0,
+        }
+    }
+
+    /// Every node's class from the refined cells: active by the cell's state (a retired
+    /// entry never), fictitious where a family neighbour (same level) is active, inactive
+    /// otherwise. A fine node has no family until it is active: its neighbours are looked up
+    /// on the lattice.
+    fn classify(&mut self, families: &Families) {
+        self.class = self.classes(families);
+        self.refresh_lists();
+    }
+
+    /// The classes [`Self::classify`] sets.
+    fn classes(&self, families: &Families) -> Vec<GridClass> {
+        let count = self.class.len();
+        let active: Vec<bool> = (0..count)
+            .into_par_iter()
+            .map(|i| (i < self.coarse_count) != self.refined[self.cell_of(i)] && !self.retired(i))
             .collect();
         let coarse_count = self.coarse_count;
-        self.class = (0..active.len())
+        let this = self;
+        (0..count)
             .into_par_iter()
             .map(|i| {
                 let fine = i >= coarse_count;
                 let near = || {
-                    families
-                        .range(i)
-                        .any(|b| active[families.neighbors[b] as usize])
+                    if !fine {
+                        return families
+                            .range(i)
+                            .any(|b| active[families.neighbors[b] as usize]);
+                    }
+                    !this.retired(i)
+                        && this.lattice.family(this.key(i)).0.iter().any(|&k| {
+                            let j = this.node_of[k as usize];
+                            j != NONE && active[j as usize]
+                        })
                 };
                 match (fine, active[i], !active[i] && near()) {
                     (false, true, _) => GridClass::CoarseActive,
@@ -304,8 +585,7 @@ impl<const D: usize> MultiAdaptive<D> {
                     (true, false, false) => GridClass::FineInactive,
                 }
             })
-            .collect();
-        self.refresh_lists();
+            .collect()
     }
 
     /// Row masks and the interpolated list from `class`.
@@ -334,14 +614,13 @@ impl<const D: usize> MultiAdaptive<D> {
     fn interpolate(&self, i: usize, value: impl Fn(usize) -> [f64; D]) -> [f64; D] {
         let mut out = [0.0; D];
         for s in self.offsets[i]..self.offsets[i + 1] {
-            let v = value(self.sources[s] as usize);
+            let v = value(self.node(self.sources[s]));
             for k in 0..D {
                 out[k] += self.weights[s] * v[k];
             }
         }
         out
     }
-
     /// Refreshes the interpolated nodes (3.85)–(3.88): displacements (positions y = x + u are
     /// stored) and velocities, refined coarse nodes first (from the fine level), then fine
     /// fictitious nodes (from the coarse level, read after their update). Each phase computes
@@ -367,6 +646,20 @@ impl<const D: usize> MultiAdaptive<D> {
             }
         }
         self.scratch = scratch;
+    }
+
+    /// Sets the interpolated nodes of a per-node field (a displacement) from the other level,
+    /// in `transfer`'s order (refined coarse nodes first).
+    pub fn interpolate_in_place(&self, u: &mut [[f64; D]]) {
+        for &i in &self.interpolated {
+            let value = self.interpolate(i as usize, |j| u[j]);
+            u[i as usize] = value;
+        }
+    }
+
+    /// The whole fine lattice's points (built or not), by key.
+    pub fn fine_lattice(&self) -> &[[f64; D]] {
+        &self.lattice.positions
     }
 
     /// Node i's position and velocity by IDW of the other level's displacements and
@@ -448,21 +741,10 @@ impl<const D: usize> MultiAdaptive<D> {
         pairs
     }
 
-    /// Refines the cells of H₁ ∪ H₂ of every critical bond: the newly active fine nodes take
-    /// the IDW of the coarse solution, the classes are updated locally (the nodes within one
-    /// family of a changed cell), and the nodes that leave the active coarse set lose their
-    /// force. Returns the fine nodes activated (their forces are computed by the next pass).
-    #[allow(clippy::too_many_arguments)]
-    pub fn refine(
-        &mut self,
-        step: u64,
-        time: f64,
-        critical: &[(u32, u32)],
-        families: &Families,
-        reference: &[[f64; D]],
-        positions: &mut [[f64; D]],
-        velocities: &mut [[f64; D]],
-    ) -> Vec<u32> {
+    /// The cells of H₁ ∪ H₂ of every critical bond not refined yet, and what refining them
+    /// adds to the fine level (`None` if every such cell is refined). The body appends the
+    /// growth (`ElasticBody::grow`), then [`Self::activate`] brings the new nodes in.
+    pub fn refine(&mut self, critical: &[(u32, u32)], families: &Families) -> Option<Growth<D>> {
         let mut cells: Vec<usize> = Vec::new();
         for &(i, j) in critical {
             for end in [i as usize, j as usize] {
@@ -474,23 +756,40 @@ impl<const D: usize> MultiAdaptive<D> {
         cells.dedup();
         cells.retain(|&c| !self.refined[c]);
         if cells.is_empty() {
-            return Vec::new();
+            return None;
         }
-        let mut activated = Vec::with_capacity(cells.len() * self.cells);
-        for &c in &cells {
+        let mut growth = self.grow(&cells, families);
+        growth.critical_bonds = critical.len();
+        Some(growth)
+    }
+
+    /// Refines the cells of `growth`, appended to the body: the newly active fine nodes take
+    /// the IDW of the coarse solution, the classes are updated locally (the nodes within one
+    /// family of a changed cell), and the nodes that leave the active coarse set lose their
+    /// force (their forces are computed by the next pass).
+    pub fn activate(
+        &mut self,
+        (step, time): (u64, f64),
+        growth: &Growth<D>,
+        families: &Families,
+        reference: &[[f64; D]],
+        positions: &mut [[f64; D]],
+        velocities: &mut [[f64; D]],
+    ) {
+        let cells = &growth.cells;
+        for &c in cells {
             self.refined[c] = true;
             self.class[c] = GridClass::CoarseInactive;
-            activated.extend(self.fine_of(c).map(|f| f as u32));
         }
         // Initialized from the coarse level before any class changes (every coarse node
         // carries a current value).
-        for &f in &activated {
+        for &f in &growth.activated {
             self.set_from_other_level(f as usize, reference, positions, velocities);
         }
-        for &f in &activated {
+        for &f in &growth.activated {
             self.class[f as usize] = GridClass::FineActive;
         }
-        for &f in &activated {
+        for &f in &growth.activated {
             for b in families.range(f as usize) {
                 let j = families.neighbors[b] as usize;
                 if self.class[j] == GridClass::FineInactive {
@@ -500,7 +799,7 @@ impl<const D: usize> MultiAdaptive<D> {
         }
         // Coarse roles change only within one family of a newly refined cell.
         let mut near: Vec<usize> = cells.clone();
-        for &c in &cells {
+        for &c in cells {
             near.extend(families.range(c).map(|b| families.neighbors[b] as usize));
         }
         near.sort_unstable();
@@ -520,13 +819,13 @@ impl<const D: usize> MultiAdaptive<D> {
         }
         self.refresh_lists();
         self.refined_by_switch += cells.len() as u64;
+        self.log.push(cells.iter().map(|&c| c as u32).collect());
         self.events.push(RefineEvent {
             step,
             time,
             cells: cells.len(),
-            critical_bonds: critical.len(),
+            critical_bonds: growth.critical_bonds,
         });
-        activated
     }
 
     /// The coarse nodes whose cells are refined (they left the active set at some point).
@@ -548,30 +847,82 @@ impl<const D: usize> MultiAdaptive<D> {
         GridClass::active_volumes(&self.class, volumes)
     }
 
-    /// The refined cells, one byte per coarse node (checkpoints).
-    pub fn refined_cells(&self) -> Vec<u8> {
-        self.refined.iter().map(|&r| u8::from(r)).collect()
+    /// The cells each refinement by the switch refined, in order, as one list: per event its
+    /// cell count, then its cells (checkpoints).
+    pub fn refinement_log(&self) -> Vec<u64> {
+        self.log
+            .iter()
+            .flat_map(|cells| {
+                std::iter::once(cells.len() as u64).chain(cells.iter().map(|&c| u64::from(c)))
+            })
+            .collect()
     }
 
-    /// Restores the refined cells of a checkpoint and every class from them.
-    pub fn restore_refined(&mut self, cells: &[u8], families: &Families) -> Result<(), String> {
-        if cells.len() != self.coarse_count {
-            return Err(format!(
-                "the checkpoint refines {} coarse cells, this scene has {}",
-                cells.len(),
-                self.coarse_count
-            ));
+    /// The refinements of a checkpoint's log (see [`Self::refinement_log`]), checked: each
+    /// event's cells, ascending, unrefined so far, within the coarse level.
+    pub fn parse_log(&self, log: &[u64]) -> Result<Vec<Vec<usize>>, String> {
+        let mut events = Vec::new();
+        let mut refined = self.refined.clone();
+        let mut at = 0;
+        while at < log.len() {
+            let count = log[at] as usize;
+            let end = (at + 1)
+                .checked_add(count)
+                .filter(|&e| count > 0 && e <= log.len());
+            let Some(end) = end else {
+                return Err(format!(
+                    "`multigrid/refine_log` holds a refinement of {count} cells where {} values \
+                     are left",
+                    log.len() - at - 1
+                ));
+            };
+            let cells: Vec<usize> = log[at + 1..end].iter().map(|&c| c as usize).collect();
+            let ordered = cells.windows(2).all(|w| w[0] < w[1]);
+            if !ordered || cells.iter().any(|&c| c >= self.coarse_count || refined[c]) {
+                return Err(
+                    "`multigrid/refine_log` refines a cell twice or one outside this scene".into(),
+                );
+            }
+            for &c in &cells {
+                refined[c] = true;
+            }
+            events.push(cells);
+            at = end;
         }
-        self.refined = cells.iter().map(|&c| c != 0).collect();
-        self.classify(families);
-        Ok(())
+        Ok(events)
+    }
+
+    /// The growth that refining `cells` (one event of a checkpoint's log) adds.
+    pub fn replay(&mut self, cells: &[usize], families: &Families) -> Growth<D> {
+        self.grow(cells, families)
     }
 
     /// Class consistency: the locally updated classes equal a classification from scratch.
     pub fn classes_from_scratch(&self, families: &Families) -> Vec<GridClass> {
-        let mut copy = self.clone();
-        copy.classify(families);
-        copy.class
+        self.classes(families)
+    }
+
+    /// The nodes a frame shows (not inactive), in lattice order: coarse nodes, then fine
+    /// nodes by key (the order of a level built whole).
+    pub fn shown_in_lattice_order(&self) -> Vec<u32> {
+        let shown = |i: usize| !self.class[i].is_inactive();
+        (0..self.coarse_count as u32)
+            .filter(|&i| shown(i as usize))
+            .chain(
+                self.node_of
+                    .iter()
+                    .copied()
+                    .filter(|&i| i != NONE && shown(i as usize)),
+            )
+            .collect()
+    }
+
+    /// Every fine node in use (not retired) with its fine lattice key (its point in
+    /// [`Self::fine_lattice`]).
+    pub fn fine_nodes(&self) -> impl Iterator<Item = (usize, u32)> + '_ {
+        (self.coarse_count..self.class.len())
+            .filter(|&i| !self.retired(i))
+            .map(|i| (i, self.key(i)))
     }
 }
 

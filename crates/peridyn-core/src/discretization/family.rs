@@ -25,6 +25,10 @@ struct RowLengths {
     /// Where row i's lengths start in `pool`.
     starts: Vec<usize>,
     pool: Vec<f64>,
+    /// The lattice spacing lengths are snapped to (0: none).
+    unit: f64,
+    /// The first row stored with each hash of its lengths (rows appended later share too).
+    first_with: std::collections::HashMap<u64, usize>,
 }
 
 /// Per-bond values of a function of the reference length, shared by equal rows like the
@@ -40,48 +44,65 @@ impl RowValues {
     }
 }
 
+/// Sets each length within 1e-12 relative of `unit`·√n (n an integer) to exactly that.
+fn snap(lengths: &mut [f64], unit: f64) {
+    if unit.is_finite() && unit > 0.0 {
+        lengths.par_iter_mut().with_min_len(4096).for_each(|l| {
+            let n = (*l / unit).powi(2).round();
+            let snapped = unit * n.sqrt();
+            if (*l - snapped).abs() <= 1e-12 * snapped {
+                *l = snapped;
+            }
+        });
+    }
+}
+
+/// A row's key for sharing: FNV-1a over its lengths' bits.
+fn row_key(row: &[f64]) -> u64 {
+    row.iter()
+        .fold(0xcbf2_9ce4_8422_2325 ^ row.len() as u64, |h, l| {
+            (h ^ l.to_bits()).wrapping_mul(0x0000_0100_0000_01b3)
+        })
+}
+
 impl RowLengths {
     /// The rows of `lengths` (one per bond, rows by `offsets`), repeated rows shared. Each
     /// length on a lattice, Δ·√n within 1e-12 relative for an integer n (Δ the shortest
-    /// bond), is first set to exactly Δ·√n: a row's lengths then depend on the offsets only,
-    /// not on rounding of the nodes' coordinates, and a bond and its reverse keep one length.
-    fn shared(offsets: &[usize], mut lengths: Vec<f64>) -> RowLengths {
-        let shortest = lengths.iter().copied().fold(f64::INFINITY, f64::min);
-        if shortest.is_finite() && shortest > 0.0 {
-            lengths.par_iter_mut().for_each(|l| {
-                let n = (*l / shortest).powi(2).round();
-                let snapped = shortest * n.sqrt();
-                if (*l - snapped).abs() <= 1e-12 * snapped {
-                    *l = snapped;
-                }
-            });
-        }
+    /// bond, or `unit` where given), is first set to exactly Δ·√n: a row's lengths then
+    /// depend on the offsets only, not on rounding of the nodes' coordinates, and a bond and
+    /// its reverse keep one length.
+    fn shared(offsets: &[usize], mut lengths: Vec<f64>, unit: Option<f64>) -> RowLengths {
+        let unit = unit.unwrap_or_else(|| lengths.iter().copied().fold(f64::INFINITY, f64::min));
+        snap(&mut lengths, unit);
         let rows = offsets.len().saturating_sub(1);
-        let key = |i: usize| -> u64 {
-            let row = &lengths[offsets[i]..offsets[i + 1]];
-            row.iter()
-                .fold(0xcbf2_9ce4_8422_2325 ^ row.len() as u64, |h, l| {
-                    (h ^ l.to_bits()).wrapping_mul(0x0000_0100_0000_01b3)
-                })
+        let keys: Vec<u64> = (0..rows)
+            .into_par_iter()
+            .map(|i| row_key(&lengths[offsets[i]..offsets[i + 1]]))
+            .collect();
+        let mut shared = RowLengths {
+            starts: Vec::with_capacity(rows),
+            pool: Vec::new(),
+            unit: if unit.is_finite() { unit } else { 0.0 },
+            first_with: Default::default(),
         };
-        let keys: Vec<u64> = (0..rows).into_par_iter().map(key).collect();
-        // The first row seen with each hash; a row equal to it shares its lengths (a distinct
-        // row with a colliding hash is stored on its own: correct, only not shared).
-        let mut first_with: std::collections::HashMap<u64, usize> = Default::default();
-        let mut starts = Vec::with_capacity(rows);
-        let mut pool = Vec::new();
         for (i, &k) in keys.iter().enumerate() {
-            let row = &lengths[offsets[i]..offsets[i + 1]];
-            let start = *first_with.entry(k).or_insert(pool.len());
-            if start < pool.len() && pool.get(start..start + row.len()) == Some(row) {
-                starts.push(start);
-            } else {
-                starts.push(pool.len());
-                pool.extend_from_slice(row);
-            }
+            shared.push(k, &lengths[offsets[i]..offsets[i + 1]]);
         }
-        pool.shrink_to_fit();
-        RowLengths { starts, pool }
+        shared.pool.shrink_to_fit();
+        shared
+    }
+
+    /// Appends one row (its `key` from [`row_key`]), sharing an equal stored row. The first
+    /// row seen with each hash is the one shared; a distinct row with a colliding hash is
+    /// stored on its own (correct, only not shared).
+    fn push(&mut self, key: u64, row: &[f64]) {
+        let start = *self.first_with.entry(key).or_insert(self.pool.len());
+        if start < self.pool.len() && self.pool.get(start..start + row.len()) == Some(row) {
+            self.starts.push(start);
+        } else {
+            self.starts.push(self.pool.len());
+            self.pool.extend_from_slice(row);
+        }
     }
 }
 
@@ -91,7 +112,7 @@ impl Families {
         let mut offsets = vec![0];
         if positions.is_empty() {
             return Families {
-                lengths: RowLengths::shared(&offsets, Vec::new()),
+                lengths: RowLengths::shared(&offsets, Vec::new(), None),
                 offsets,
                 neighbors: Vec::new(),
             };
@@ -150,7 +171,7 @@ impl Families {
         );
         assert!(neighbors.iter().all(|&j| (j as usize) < positions.len()));
         Families {
-            lengths: RowLengths::shared(&offsets, lengths),
+            lengths: RowLengths::shared(&offsets, lengths, None),
             offsets,
             neighbors,
         }
@@ -181,7 +202,7 @@ impl Families {
             offsets.push(neighbors.len());
         }
         Families {
-            lengths: RowLengths::shared(&offsets, lengths),
+            lengths: RowLengths::shared(&offsets, lengths, None),
             offsets,
             neighbors,
         }
@@ -202,9 +223,38 @@ impl Families {
             .copied()
             .collect();
         Families {
-            lengths: RowLengths::shared(&offsets, lengths),
+            lengths: RowLengths::shared(&offsets, lengths, None),
             offsets,
             neighbors,
+        }
+    }
+
+    /// These families with every length snapped to multiples √n of `unit` (as a union with
+    /// a finer level would snap them: the multi-adaptive levels, `adapt::multiadaptive`).
+    pub fn resnapped(&self, unit: f64) -> Families {
+        let lengths: Vec<f64> = (0..self.node_count())
+            .flat_map(|i| self.row_lengths(i))
+            .copied()
+            .collect();
+        Families {
+            lengths: RowLengths::shared(&self.offsets, lengths, Some(unit)),
+            offsets: self.offsets.clone(),
+            neighbors: self.neighbors.clone(),
+        }
+    }
+
+    /// Appends the rows of new nodes (numbered after the present ones), each as its
+    /// neighbors and their reference lengths, which are snapped as the present ones were and
+    /// shared with equal stored rows. The rows already present are left as they are.
+    pub fn append_rows(&mut self, rows: &[(Vec<u32>, Vec<f64>)]) {
+        let unit = self.lengths.unit;
+        for (neighbors, lengths) in rows {
+            assert_eq!(neighbors.len(), lengths.len(), "one length per neighbor");
+            let mut lengths = lengths.clone();
+            snap(&mut lengths, unit);
+            self.neighbors.extend_from_slice(neighbors);
+            self.offsets.push(self.neighbors.len());
+            self.lengths.push(row_key(&lengths), &lengths);
         }
     }
 
@@ -213,7 +263,7 @@ impl Families {
         assert_eq!(offsets.last().copied().unwrap_or(0), neighbors.len());
         assert_eq!(neighbors.len(), lengths.len());
         Families {
-            lengths: RowLengths::shared(&offsets, lengths),
+            lengths: RowLengths::shared(&offsets, lengths, None),
             offsets,
             neighbors,
         }
@@ -268,6 +318,7 @@ impl Families {
             + size_of_val(self.neighbors.as_slice())
             + size_of_val(self.lengths.starts.as_slice())
             + size_of_val(self.lengths.pool.as_slice())
+            + self.lengths.first_with.len() * 2 * std::mem::size_of::<u64>()
     }
 
     pub fn node_count(&self) -> usize {
@@ -295,6 +346,27 @@ pub fn search_radius(kind: FamilyRadius, horizon: f64, spacing: f64) -> f64 {
 #[inline(always)]
 pub fn partial_volume(r: f64, horizon: f64, spacing: f64) -> f64 {
     ((horizon + 0.5 * spacing - r) / spacing).clamp(0.0, 1.0)
+}
+
+/// The bonds of node i's row that cross `crack`, from either end. A bond a→b that crosses the
+/// crack at p has dist(a, crack) ≤ |a − p| ≤ |b − a|: a row farther from the crack than its
+/// longest bond is skipped (exact: the distance used is a lower bound).
+pub fn cut_bonds<'a, const D: usize>(
+    crack: &'a CrackGeometry,
+    positions: &'a [[f64; D]],
+    families: &'a Families,
+    i: usize,
+) -> impl Iterator<Item = usize> + 'a {
+    let longest = families
+        .row_lengths(i)
+        .iter()
+        .fold(0.0f64, |m, &l| m.max(l));
+    let a = &positions[i];
+    let near = crack_distance_bound(crack, a) <= longest * (1.0 + 1e-9);
+    families.range(i).filter(move |_| near).filter(move |&b| {
+        let other = &positions[families.neighbors[b] as usize];
+        crosses(crack, a, other) || crosses(crack, other, a)
+    })
 }
 
 /// True if the bond from `a` to `b` crosses the pre-crack.

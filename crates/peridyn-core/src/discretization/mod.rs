@@ -149,25 +149,9 @@ impl<const D: usize> Discretization<D> {
         let mut intact = vec![1u8; families.bond_count()];
         for (c, crack) in scene.precracks.iter().enumerate() {
             // The bonds each node's row loses, rows in parallel; then cut.
-            // A bond a→b that crosses the crack at p has dist(a, crack) ≤ |a − p| ≤ |b − a|:
-            // rows farther from the crack than their longest bond are skipped (exact: the distance
-            // used is a lower bound).
             let cut: Vec<usize> = (0..positions.len())
                 .into_par_iter()
-                .filter(|&i| {
-                    let longest = families
-                        .row_lengths(i)
-                        .iter()
-                        .fold(0.0f64, |m, &l| m.max(l));
-                    family::crack_distance_bound(crack, &positions[i]) <= longest * (1.0 + 1e-9)
-                })
-                .flat_map_iter(|i| {
-                    let a = &positions[i];
-                    families.range(i).filter(move |&b| {
-                        let other = &positions[families.neighbors[b] as usize];
-                        family::crosses(crack, a, other) || family::crosses(crack, other, a)
-                    })
-                })
+                .flat_map_iter(|i| family::cut_bonds(crack, positions, families, i))
                 .collect();
             if cut.is_empty() {
                 return Err(scene.error(

@@ -47,22 +47,25 @@ impl<const D: usize> Standard<'_, D> {
     /// Per node, (Σ β V'_j over all bonds, Σ β V'_j over broken bonds): the damage
     /// denominator and the numerator `forces` keeps up to date.
     pub fn damage_weights(&self, intact: &[u8]) -> (Vec<f64>, Vec<f64>) {
-        let families = self.families;
-        (0..families.node_count())
+        (0..self.families.node_count())
             .into_par_iter()
-            .map(|i| {
-                let (mut all, mut lost) = (0.0, 0.0);
-                for b in families.range(i) {
-                    let j = families.neighbors[b] as usize;
-                    let w = self.quadrature.beta(families.length(i, b)) * self.damage_volume(j);
-                    all += w;
-                    if intact[b] == 0 {
-                        lost += w;
-                    }
-                }
-                (all, lost)
-            })
+            .map(|i| self.row_damage_weights(i, intact))
             .unzip()
+    }
+
+    /// Node i's (Σ β V'_j over all bonds, Σ β V'_j over broken bonds).
+    pub fn row_damage_weights(&self, i: usize, intact: &[u8]) -> (f64, f64) {
+        let families = self.families;
+        let (mut all, mut lost) = (0.0, 0.0);
+        for b in families.range(i) {
+            let j = families.neighbors[b] as usize;
+            let w = self.quadrature.beta(families.length(i, b)) * self.damage_volume(j);
+            all += w;
+            if intact[b] == 0 {
+                lost += w;
+            }
+        }
+        (all, lost)
     }
 
     /// Force density on every node (N/m³) at `positions`, breaking bonds whose stretch

@@ -6,12 +6,13 @@
 
 use rayon::prelude::*;
 
+use crate::adapt::multiadaptive::Growth;
 use crate::discretization::nodes::Base;
-use crate::discretization::{Discretization, Families, Field, Nodes, Quadrature};
+use crate::discretization::{Discretization, Families, Field, Nodes, Quadrature, family};
 use crate::integrate::verlet::{self, VerletBody};
 use crate::metrics;
 use crate::model::pmb::PmbLaw;
-use crate::scene::{Condition, Scene};
+use crate::scene::{BoundarySpec, Condition, Scene};
 use crate::scheme::RowMask;
 use crate::scheme::standard::{NodeTerms, Standard};
 use crate::solver::State;
@@ -448,6 +449,92 @@ impl<const D: usize> VerletBody for ElasticBody<D> {
     }
 }
 
+impl<const D: usize> ElasticBody<D> {
+    /// Appends the nodes of a multi-adaptive refinement (`MultiAdaptive::refine`): their
+    /// columns at rest, their families with the scene's pre-cracks cut, the re-pointed bonds,
+    /// their damage weights with `level`'s quadrature, and the boundary layers they fall in.
+    pub fn grow(&mut self, growth: &Growth<D>, level: &Quadrature) {
+        let count = growth.reference.len();
+        let nodes = &mut self.discretization.nodes;
+        let new = nodes.append(
+            &growth.reference,
+            &vec![growth.volume; count],
+            &vec![u32::MAX; count],
+        );
+        let c = self.columns;
+        nodes.fields.get_mut(c.position)[new.clone()].copy_from_slice(&growth.reference);
+        let families = &mut self.discretization.families;
+        let first_bond = families.bond_count();
+        families.append_rows(&growth.rows);
+        for &(b, j) in &growth.rewrites {
+            families.neighbors[b] = j;
+        }
+        let reference = self.discretization.nodes.reference();
+        let families = &self.discretization.families;
+        let cut: Vec<usize> = new
+            .clone()
+            .into_par_iter()
+            .flat_map_iter(|i| {
+                let cracks = self.scene.precracks.iter();
+                cracks.flat_map(move |k| family::cut_bonds(k, reference, families, i))
+            })
+            .collect();
+        self.intact.resize(families.bond_count(), 1);
+        for b in cut {
+            self.intact[b] = 0;
+        }
+        debug_assert!(families.range(new.start).start >= first_bond);
+        let weights: Vec<(f64, f64)> = {
+            let scheme = self.level_scheme(Some(level));
+            new.clone()
+                .into_par_iter()
+                .map(|i| scheme.row_damage_weights(i, &self.intact))
+                .collect()
+        };
+        let fields = &mut self.discretization.nodes.fields;
+        for (i, &(all, lost)) in new.clone().zip(&weights) {
+            fields.get_mut(c.family_weight)[i] = all;
+            fields.get_mut(c.terms)[i].broken_weight = lost;
+        }
+        self.hold_new_nodes(new);
+    }
+
+    /// Adds nodes `new` to the boundary layers that select them, with their held components
+    /// and body forces.
+    fn hold_new_nodes(&mut self, new: std::ops::Range<usize>) {
+        let scene = &self.scene;
+        let (lo, hi) = scene.solid.bounds();
+        let eps = 1e-9 * scene.spacing;
+        let reference = self.discretization.nodes.reference();
+        let mut selected: Vec<(usize, u32)> = Vec::new();
+        for (l, layer) in scene.boundary.iter().enumerate() {
+            selected.extend(
+                new.clone()
+                    .filter(|&i| layer.contains(&reference[i], &lo, &hi, eps))
+                    .map(|i| (l, i as u32)),
+            );
+        }
+        let fields = &mut self.discretization.nodes.fields;
+        for (l, i) in selected {
+            self.discretization.layers[l].push(i);
+            let (velocity, displacement) = (&mut self.held_velocity, &mut self.held_displacement);
+            apply_layer(
+                &self.scene.boundary[l],
+                i,
+                velocity,
+                displacement,
+                |a, value| {
+                    let column = self
+                        .columns
+                        .body_force
+                        .expect("a body-force layer's column");
+                    fields.get_mut(column)[i as usize][a] += value;
+                },
+            );
+        }
+    }
+}
+
 /// The standard scheme over `discretization` with `level`'s quadrature and cell volume, or
 /// the discretization's own (see [`ElasticBody::level_scheme`]).
 pub fn standard_over<'a, const D: usize>(
@@ -494,19 +581,32 @@ fn boundary_conditions<const D: usize>(
     let mut body: Option<Vec<[f64; D]>> = None;
     for (layer, nodes) in scene.boundary.iter().zip(layers) {
         for &i in nodes {
-            let held = layer.axes.iter().map(|&a| (i, a as u8, layer.value[a]));
-            match layer.condition {
-                Condition::Velocity => velocity.extend(held),
-                Condition::Displacement => displacement.extend(held),
-                Condition::Reference | Condition::Value => {}
-                Condition::BodyForce => {
-                    let body = body.get_or_insert_with(|| vec![[0.0; D]; n]);
-                    for &a in &layer.axes {
-                        body[i as usize][a] += layer.value[a];
-                    }
-                }
-            }
+            apply_layer(layer, i, &mut velocity, &mut displacement, |a, value| {
+                body.get_or_insert_with(|| vec![[0.0; D]; n])[i as usize][a] += value;
+            });
         }
     }
     (velocity, displacement, body)
+}
+
+/// What `layer` prescribes at node i: its held components, into the list of its condition,
+/// or its body force, component by component through `body_force(axis, value)`.
+fn apply_layer(
+    layer: &BoundarySpec,
+    i: u32,
+    velocity: &mut Vec<Held>,
+    displacement: &mut Vec<Held>,
+    mut body_force: impl FnMut(usize, f64),
+) {
+    let held = layer.axes.iter().map(|&a| (i, a as u8, layer.value[a]));
+    match layer.condition {
+        Condition::Velocity => velocity.extend(held),
+        Condition::Displacement => displacement.extend(held),
+        Condition::Reference | Condition::Value => {}
+        Condition::BodyForce => {
+            for &a in &layer.axes {
+                body_force(a, layer.value[a]);
+            }
+        }
+    }
 }

@@ -10,10 +10,12 @@ use rayon::prelude::*;
 
 use super::body::{ElasticBody, standard_over};
 use super::hybrid::HYBRID_KRYLOV_DIMENSION;
-use super::scheme::ElasticScheme;
+use super::scheme::{ElasticScheme, symbol_bound};
 use crate::adapt::masks::GridClass;
-use crate::adapt::multiadaptive::MultiAdaptive;
+use crate::adapt::multiadaptive::{Growth, MultiAdaptive};
 use crate::discretization::Discretization;
+use crate::discretization::Quadrature;
+use crate::discretization::family::search_radius;
 use crate::frame::Frame;
 use crate::integrate::stability::{self, POWER_ITERATIONS};
 use crate::integrate::verlet::ForceTerms;
@@ -32,6 +34,83 @@ pub struct LevelScheme<const D: usize> {
 }
 
 impl<const D: usize> LevelScheme<D> {
+    /// Appends a refinement's fine nodes to the body and brings them in: the new active
+    /// nodes take the coarse solution, the interpolated nodes the other level's.
+    fn add_cells(&mut self, body: &mut ElasticBody<D>, growth: &Growth<D>, tick: (u64, f64)) {
+        body.grow(growth, &self.grid.fine);
+        let g = &mut self.grid;
+        let (reference, families, positions, velocities) = body.motion_mut();
+        g.activate(tick, growth, families, reference, positions, velocities);
+        g.transfer(reference, positions, velocities);
+    }
+
+    /// Velocity-Verlet's step from the power-iterated λ_max of the standard levels' active
+    /// rows, each with its own quadrature, the levels uncoupled (fictitious nodes free).
+    fn lanczos_step(&self, body: &ElasticBody<D>) -> f64 {
+        let g = &self.grid;
+        let (intact, density) = (&body.intact, body.density);
+        let (coarse, fine) = (
+            body.level_scheme(Some(&g.coarse)),
+            body.level_scheme(Some(&g.fine)),
+        );
+        let coefficients = self.level_coefficients(body);
+        let masses: Vec<f64> = g
+            .active_volumes(body.volumes())
+            .iter()
+            .map(|v| v * density)
+            .collect();
+        let n = body.positions().len();
+        let rows = &g.rows;
+        let wls = self.coarse_wls.is_some();
+        let lambda_max = stability::max_eigenvalue::<D>(n, &masses, POWER_ITERATIONS, |u, out| {
+            out.fill([0.0; D]);
+            coarse.apply_linearized_masked(&coefficients, intact, u, out, |i| {
+                wls || rows.coarse[i] != 0
+            });
+            fine.apply_linearized_masked(&coefficients, intact, u, out, |i| rows.fine[i] != 0);
+        });
+        stability::verlet_step(lambda_max)
+    }
+
+    /// Each bond's linearized coefficient with its level's quadrature.
+    fn level_coefficients(&self, body: &ElasticBody<D>) -> Linearized {
+        let g = &self.grid;
+        let (coarse, fine) = (
+            body.level_scheme(Some(&g.coarse)),
+            body.level_scheme(Some(&g.fine)),
+        );
+        let split = body.families().offsets[g.coarse_count];
+        let mut coefficients = coarse.linearized_coefficients(body.density);
+        coefficients[split..].copy_from_slice(&fine.linearized_coefficients(body.density)[split..]);
+        Linearized::PerBond(coefficients)
+    }
+
+    /// The spectral radius (Arnoldi) of the coupled linearized operator per unit mass on the
+    /// standard levels' active rows: the fictitious nodes' values interpolated from the other
+    /// level as in a step (a check of the stable step's bound; a WLS coarse level's rows left
+    /// out).
+    pub fn coupled_spectral_radius(&self, body: &ElasticBody<D>) -> f64 {
+        let g = &self.grid;
+        let intact = &body.intact;
+        let (coarse, fine) = (
+            body.level_scheme(Some(&g.coarse)),
+            body.level_scheme(Some(&g.fine)),
+        );
+        let coefficients = self.level_coefficients(body);
+        let (rows, wls) = (&g.rows, self.coarse_wls.is_some());
+        let n = body.positions().len();
+        stability::arnoldi_spectral_radius(n * D, HYBRID_KRYLOV_DIMENSION, |v, out| {
+            let mut u = v.as_chunks::<D>().0.to_vec();
+            g.interpolate_in_place(&mut u);
+            let out = out.as_chunks_mut::<D>().0;
+            out.fill([0.0; D]);
+            coarse.apply_linearized_masked(&coefficients, intact, &u, out, |i| {
+                wls || rows.coarse[i] != 0
+            });
+            fine.apply_linearized_masked(&coefficients, intact, &u, out, |i| rows.fine[i] != 0);
+        })
+    }
+
     /// Node i's level quadrature.
     fn level_of(&self, i: usize) -> &crate::discretization::Quadrature {
         if i < self.grid.coarse_count {
@@ -52,16 +131,13 @@ impl<const D: usize> Adaptation<ElasticBody<D>> for LevelScheme<D> {
     /// of an active coarse node is checked and the critical ones refine their neighbourhoods,
     /// before the force pass evaluates damage on u^{n+1}.
     fn after_move(&mut self, body: &mut ElasticBody<D>, tick: Tick) {
-        let g = &mut self.grid;
         let s0 = body.law.critical_stretch;
+        let g = &mut self.grid;
         let (reference, families, positions, velocities) = body.motion_mut();
         g.transfer(reference, positions, velocities);
         let critical = g.critical_bonds(reference, positions, families, s0);
-        if !critical.is_empty() {
-            g.refine(
-                tick.step, tick.time, &critical, families, reference, positions, velocities,
-            );
-            g.transfer(reference, positions, velocities);
+        if let Some(growth) = g.refine(&critical, families) {
+            self.add_cells(body, &growth, (tick.step, tick.time));
         }
     }
 
@@ -86,20 +162,34 @@ impl<const D: usize> Adaptation<ElasticBody<D>> for LevelScheme<D> {
             .extend(g.take_events().iter().map(|e| e.to_string()));
         frame.classes.push(GridClass::field(&g.class));
         frame.radii = GridClass::radii(&g.class, g.coarse.spacing, g.fine.spacing);
-        let keep: Vec<bool> = g.class.iter().map(|c| !c.is_inactive()).collect();
-        frame.retain_nodes(&keep);
+        // In the order of a level built whole, whatever order the fine nodes were made in.
+        frame.select_nodes(&g.shown_in_lattice_order());
     }
 
     fn save(&self, _body: &ElasticBody<D>, state: &mut State) {
-        state.put_u8("multigrid/refined", self.grid.refined_cells());
+        let log = self.grid.refinement_log();
+        state.put_u64("multigrid/refine_log_len", vec![log.len() as u64]);
+        state.put_u64("multigrid/refine_log", log);
         state.put_u64("multigrid/coarse_broken", vec![self.coarse_broken]);
     }
 
+    /// The refinements since the start are replayed on the freshly built levels (the same
+    /// cells in the same order give the same nodes and bond layout); the body's columns and
+    /// bond states are read after.
     fn restore(&mut self, body: &mut ElasticBody<D>, state: &State) -> Result<(), String> {
-        let refined = state.u8("multigrid/refined", self.grid.coarse_count)?;
+        let len = state.u64("multigrid/refine_log_len", 1)?[0] as usize;
+        let events = self
+            .grid
+            .parse_log(state.u64("multigrid/refine_log", len)?)?;
         let coarse_broken = state.u64("multigrid/coarse_broken", 1)?[0];
-        self.grid
-            .restore_refined(refined, &body.discretization.families)?;
+        if self.grid.refined_by_switch != 0 {
+            return Err("refinements can be replayed on freshly built levels only".into());
+        }
+        for cells in events {
+            let growth = self.grid.replay(&cells, &body.discretization.families);
+            self.add_cells(body, &growth, (0, 0.0));
+        }
+        self.grid.take_events();
         self.coarse_broken = coarse_broken;
         Ok(())
     }
@@ -126,7 +216,8 @@ impl<const D: usize> ForceTerms<ElasticBody<D>> for LevelScheme<D> {
         if let Some(w) = self.coarse_wls.as_mut() {
             let (reference, _, positions, _) = body.motion_mut();
             // Every row is a coarse node's; the inactive ones are left alone.
-            w.forces(reference, positions, |i| g.class[i].is_active());
+            let c = g.coarse_count;
+            w.forces(&reference[..c], &positions[..c], |i| g.class[i].is_active());
         }
         if self.coarse_wls.is_none() {
             self.coarse_broken += body.bond_forces(Some(&g.coarse), Some(&g.rows.coarse), energy);
@@ -166,17 +257,21 @@ impl<const D: usize> ElasticScheme<D> for LevelScheme<D> {
         (pick(&coarse.0, &fine.0), pick(&coarse.1, &fine.1))
     }
 
-    /// (3.8) over every node of the standard levels (any may become active), and the
-    /// power-iterated sharp limit of the operator on the initially active standard rows of
-    /// both levels (each with its own quadrature). With a WLS coarse level its rows' spectral
-    /// radius bounds Δt too ((3.8) does not cover them; the levels' coupling through
-    /// fictitious nodes is left out of both estimates).
+    /// (3.8) over every node of the standard levels, and the sharp limit from each standard
+    /// level's lattice symbol: each level's active rows are rows of its lattice's operator
+    /// (one volume, its own β), so the symbol bounds each level's λ_max rigorously
+    /// (`integrate::lattice_symbol`) at any refinement, and the larger bound sets Δt, without
+    /// building or iterating the operator. The levels' coupling (fictitious nodes take convex
+    /// IDW combinations of the other level) is outside that argument; the coupled operator's
+    /// spectral radius, interpolation included, is checked against the bound on the scenes
+    /// (`coupled_spectral_radius`; tests/suite/multiadaptive.rs). With a WLS coarse level its
+    /// rows' spectral radius (Arnoldi) bounds Δt too. Off a lattice, Lanczos on the active
+    /// rows.
     fn stable_step(&self, body: &ElasticBody<D>) -> StableStep {
         let g = &self.grid;
-        let (intact, density) = (&body.intact, body.density);
+        let density = body.density;
         let coarse = body.level_scheme(Some(&g.coarse));
         let fine = body.level_scheme(Some(&g.fine));
-        let split = body.families().offsets[g.coarse_count];
         let mut guaranteed =
             crate::integrate::stable_step(density, &fine.stiffness_sums()[g.coarse_count..]);
         if self.coarse_wls.is_none() {
@@ -185,33 +280,33 @@ impl<const D: usize> ElasticScheme<D> for LevelScheme<D> {
                 &coarse.stiffness_sums()[..g.coarse_count],
             ));
         }
-        let mut coefficients = coarse.linearized_coefficients(density);
-        coefficients[split..].copy_from_slice(&fine.linearized_coefficients(density)[split..]);
-        let coefficients = Linearized::PerBond(coefficients);
-        let masses: Vec<f64> = g
-            .active_volumes(body.volumes())
-            .iter()
-            .map(|v| v * density)
-            .collect();
-        let n = body.positions().len();
-        let rows = &g.rows;
-        let wls = self.coarse_wls.is_some();
-        let lambda_max = stability::max_eigenvalue::<D>(n, &masses, POWER_ITERATIONS, |u, out| {
-            out.fill([0.0; D]);
-            coarse.apply_linearized_masked(&coefficients, intact, u, out, |i| {
-                wls || rows.coarse[i] != 0
-            });
-            fine.apply_linearized_masked(&coefficients, intact, u, out, |i| rows.fine[i] != 0);
-        });
-        let mut sharp = stability::verlet_step(lambda_max).max(guaranteed);
+        let scene = &body.scene;
+        let reach = |q: &Quadrature| search_radius(scene.family_radius, scene.horizon, q.spacing);
+        let fine_bound = symbol_bound(&fine, g.fine_lattice(), reach(&g.fine), density);
+        let coarse_bound = match self.coarse_wls {
+            Some(_) => Some(0.0),
+            None => {
+                let points = &body.reference()[..g.coarse_count];
+                symbol_bound(&coarse, points, reach(&g.coarse), density)
+            }
+        };
+        let mut sharp = match fine_bound.zip(coarse_bound) {
+            Some((f, c)) => stability::verlet_limit(f.max(c)),
+            None => self.lanczos_step(body),
+        }
+        .max(guaranteed);
         if let Some(w) = &self.coarse_wls {
-            let radius =
-                stability::arnoldi_spectral_radius(n * D, HYBRID_KRYLOV_DIMENSION, |v, out| {
+            let rows = &g.rows;
+            let radius = stability::arnoldi_spectral_radius(
+                g.coarse_count * D,
+                HYBRID_KRYLOV_DIMENSION,
+                |v, out| {
                     let u = v.as_chunks::<D>().0;
                     let out = out.as_chunks_mut::<D>().0;
                     out.fill([0.0; D]);
                     w.apply_linearized(u, density, out, |i| rows.coarse[i] == 0);
-                });
+                },
+            );
             sharp = sharp.min(stability::verlet_step(radius));
         }
         StableStep {

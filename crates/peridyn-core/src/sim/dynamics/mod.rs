@@ -88,7 +88,10 @@ fn scheme_of<const D: usize>(
                 let rows: Vec<u32> = (0..grid.coarse_count as u32)
                     .filter(|&i| grid.class[i as usize].is_active())
                     .collect();
-                let w = WlsRows::elasticity(&rows, reference, families, law, collocation).map_err(
+                // Over the coarse level alone (its families hold no fine node): the fine
+                // level grows during the run.
+                let coarse = &reference[..grid.coarse_count];
+                let w = WlsRows::elasticity(&rows, coarse, families, law, collocation).map_err(
                     |e| scene.error(&format!("multigrid.{}", collocation.field()), e.to_string()),
                 )?;
                 Some(w)
@@ -211,6 +214,15 @@ impl<const D: usize> DynamicSimulation<D> {
         Some(&l.grid)
     }
 
+    /// On a multi-adaptive scene: the λ_max bound its stable step takes (from the sharp
+    /// step, 2/√λ), and the spectral radius of the coupled linearized operator now (the
+    /// levels' fictitious nodes interpolated), for a check of the bound.
+    pub fn multigrid_stability(&self) -> Option<(f64, f64)> {
+        let l = self.scheme_as::<LevelScheme<D>>()?;
+        let sharp = l.stable_step(&self.body).sharp;
+        Some(((2.0 / sharp).powi(2), l.coupled_spectral_radius(&self.body)))
+    }
+
     /// Damage recomputed from the bond states in one pass over all bonds (a check of
     /// `damage`).
     pub fn damage_from_bonds(&self) -> Vec<f64> {
@@ -289,9 +301,11 @@ impl<const D: usize> Stepper for DynamicSimulation<D> {
 
     fn restore_state(&mut self, state: &State) -> Result<(), String> {
         let clock = Clock::restore(state)?;
-        let saved = self.body.read_state(state)?;
+        // The plug-ins first: a multi-adaptive scheme replays its refinements, which add the
+        // nodes and bonds the body's part then fills.
         let scheme = Some(&mut *self.scheme as &mut dyn Adaptation<_>);
         restore_each(scheme, &mut self.plugins, &mut self.body, state)?;
+        let saved = self.body.read_state(state)?;
         self.body.write_state(saved);
         self.run.clock = clock;
         Ok(())

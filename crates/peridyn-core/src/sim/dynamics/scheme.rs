@@ -108,21 +108,25 @@ const SYMBOL_TOLERANCE: f64 = 1e-3;
 /// family of 122 offsets needs about 90 000).
 const SYMBOL_EVALUATIONS: usize = 2_000_000;
 
-/// The symbol of the scheme's linearized operator on the infinite lattice, where it bounds the
-/// operator's λ_max (`integrate::lattice_symbol`): every node of one volume, on the lattice of
-/// the quadrature's spacing. Its offsets reach the longest bond.
-fn lattice_symbol<const D: usize>(
+/// The bound of the standard scheme's linearized operator's λ_max from the symbol of the
+/// infinite lattice `points` lie on (`integrate::lattice_symbol`): every node of one volume, on
+/// the lattice of the quadrature's spacing, its offsets reaching `reach` (the longest bond).
+/// `None` off a lattice or where the branch and bound does not settle.
+pub(super) fn symbol_bound<const D: usize>(
     scheme: &Standard<'_, D>,
+    points: &[[f64; D]],
+    reach: f64,
     density: f64,
-) -> Option<LatticeSymbol<D>> {
+) -> Option<f64> {
     let volume = scheme.uniform_volume?;
     let spacing = scheme.quadrature.spacing;
-    if !on_lattice(scheme.reference, spacing) {
+    if !on_lattice(points, spacing) {
         return None;
     }
-    LatticeSymbol::of_bonds(spacing, scheme.families.longest(), |l| {
+    LatticeSymbol::<D>::of_bonds(spacing, reach, |l| {
         scheme.linearized_coefficient(density, l, volume)
-    })
+    })?
+    .max_eigenvalue_bound(SYMBOL_TOLERANCE, SYMBOL_EVALUATIONS)
 }
 
 /// The stable step of velocity-Verlet on the standard scheme's linearized operator: the sharp
@@ -138,8 +142,7 @@ pub(super) fn standard_stable_step<const D: usize>(
     // On a lattice the infinite lattice's symbol bounds λ_max from above (rigorous: no
     // margin, and milliseconds instead of 26–55 applications of the operator). Elsewhere
     // Lanczos approaches λ_max from below: keep a margin.
-    let lambda_bound = lattice_symbol(scheme, density)
-        .and_then(|symbol| symbol.max_eigenvalue_bound(SYMBOL_TOLERANCE, SYMBOL_EVALUATIONS))
+    let lambda_bound = symbol_bound(scheme, scheme.reference, scheme.families.longest(), density)
         .unwrap_or_else(|| {
             let masses: Vec<f64> = scheme.volumes.iter().map(|v| v * density).collect();
             let coefficients = scheme.linearized(density);
