@@ -101,6 +101,21 @@ pub const PAIRS: &[Pair] = &[
         ],
     },
     Pair {
+        what: "Multi-adaptive Kalthoff–Winkler, standard on both levels, against uniform fine",
+        preset: "kalthoff-winkler-multigrid",
+        fast: side("full-band"),
+        baseline: side("full-band-fine"),
+        quick: [
+            with("small", QUICK_KW_MULTIGRID),
+            with("small-fine", QUICK_KW_MULTIGRID),
+        ],
+        accuracy: &[
+            Accuracy::Relative("energy/circle/upper_tip"),
+            Accuracy::Angle("upper"),
+            Accuracy::Angle("lower"),
+        ],
+    },
+    Pair {
         what: "screw-3d: multi-grid against uniform fine",
         preset: "screw-3d",
         fast: side(""),

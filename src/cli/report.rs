@@ -72,11 +72,13 @@ pub fn describe(scene: &Scene, info: &SimInfo, steps: Option<u64>) -> String {
             info.frame_every
         ),
         Physics::Dynamics => format!(
-            "{name}: {}D, {} nodes, {} directed bonds, Δt = {:.4e} s ({:.2}× the stable bound \
-             {:.4e} s; (3.8) estimate {:.4e} s), {steps} steps, a frame every {}",
+            "{name}: {}D, {} nodes, {} directed bonds ({:.2} GB of bond and node arrays at the \
+             start), Δt = {:.4e} s ({:.2}× the stable bound {:.4e} s; (3.8) estimate {:.4e} s), \
+             {steps} steps, a frame every {}",
             info.dim,
             info.nodes,
             info.bonds,
+            info.bytes_per_bond * info.bonds as f64 / 1e9,
             info.dt,
             info.dt / info.stable_dt,
             info.stable_dt,
