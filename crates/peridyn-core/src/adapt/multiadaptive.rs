@@ -667,49 +667,28 @@ impl<const D: usize> MultiAdaptive<D> {
         GridClass::active_volumes(&self.class, volumes)
     }
 
-    /// The cells each refinement by the switch refined, in order, as one list: per event its
-    /// cell count, then its cells (checkpoints).
-    pub fn refinement_log(&self) -> Vec<u64> {
-        self.log
-            .iter()
-            .flat_map(|cells| {
-                std::iter::once(cells.len() as u64).chain(cells.iter().map(|&c| u64::from(c)))
-            })
-            .collect()
+    /// The cells each refinement by the switch refined, in order (checkpoints).
+    pub fn refinements(&self) -> impl Iterator<Item = &[u32]> {
+        self.log.iter().map(Vec::as_slice)
     }
 
-    /// The refinements of a checkpoint's log (see [`Self::refinement_log`]), checked: each
-    /// event's cells, ascending, unrefined so far, within the coarse level.
-    pub fn parse_log(&self, log: &[u64]) -> Result<Vec<Vec<usize>>, String> {
-        let mut events = Vec::new();
+    /// A checkpoint's refinements (see [`Self::refinements`]) checked: each event's cells
+    /// ascending, unrefined so far, within the coarse level.
+    pub fn check_refinements(&self, events: &[Vec<u32>]) -> Result<(), String> {
         let mut refined = self.refined.clone();
-        let mut at = 0;
-        while at < log.len() {
-            let count = log[at] as usize;
-            let end = (at + 1)
-                .checked_add(count)
-                .filter(|&e| count > 0 && e <= log.len());
-            let Some(end) = end else {
-                return Err(format!(
-                    "`multigrid/refine_log` holds a refinement of {count} cells where {} values \
-                     are left",
-                    log.len() - at - 1
-                ));
-            };
-            let cells: Vec<usize> = log[at + 1..end].iter().map(|&c| c as usize).collect();
+        for cells in events {
             let ordered = cells.windows(2).all(|w| w[0] < w[1]);
-            if !ordered || cells.iter().any(|&c| c >= self.coarse_count || refined[c]) {
+            let outside = |c: u32| c as usize >= self.coarse_count;
+            if !ordered || cells.iter().any(|&c| outside(c) || refined[c as usize]) {
                 return Err(
                     "`multigrid/refine_log` refines a cell twice or one outside this scene".into(),
                 );
             }
-            for &c in &cells {
-                refined[c] = true;
+            for &c in cells {
+                refined[c as usize] = true;
             }
-            events.push(cells);
-            at = end;
         }
-        Ok(events)
+        Ok(())
     }
 
     /// The growth that refining `cells` (one event of a checkpoint's log) adds.

@@ -111,6 +111,46 @@ impl State {
         self.sections.iter().any(|(n, _)| n == name)
     }
 
+    /// A log of events, each a list of indices (the splits or refinements a checkpoint
+    /// replays), as section `name`: every event's length, then its entries; its total length
+    /// in `name_len`.
+    pub fn put_log<'a>(&mut self, name: &str, events: impl Iterator<Item = &'a [u32]>) {
+        let log: Vec<u64> = events
+            .flat_map(|e| std::iter::once(e.len() as u64).chain(e.iter().map(|&k| u64::from(k))))
+            .collect();
+        self.put_u64(&format!("{name}_len"), vec![log.len() as u64]);
+        self.put_u64(name, log);
+    }
+
+    /// The events of a log written by [`Self::put_log`], each non-empty and within the log
+    /// (`what` names an event's entries in the error: "parents", "cells").
+    pub fn log(&self, name: &str, what: &str) -> Result<Vec<Vec<u32>>, String> {
+        let len = self.u64(&format!("{name}_len"), 1)?[0] as usize;
+        let log = self.u64(name, len)?;
+        let mut events = Vec::new();
+        let mut at = 0;
+        while at < log.len() {
+            let count = log[at] as usize;
+            let end = (at + 1)
+                .checked_add(count)
+                .filter(|&e| count > 0 && e <= log.len());
+            let Some(end) = end else {
+                return Err(format!(
+                    "`{name}` holds an event of {count} {what} where {} values are left",
+                    log.len() - at - 1
+                ));
+            };
+            let entries = log[at + 1..end].iter();
+            events.push(
+                entries
+                    .map(|&k| u32::try_from(k).unwrap_or(u32::MAX))
+                    .collect(),
+            );
+            at = end;
+        }
+        Ok(events)
+    }
+
     pub fn encode(&self, out: &mut Vec<u8>) {
         out.extend((self.sections.len() as u64).to_le_bytes());
         for (name, section) in &self.sections {

@@ -144,25 +144,8 @@ impl Splitting {
         if !self.log.is_empty() {
             return Err("splits can be replayed on a freshly built scene only".into());
         }
-        let len = state.u64("dual_horizon/split_log_len", 1)?[0] as usize;
-        let log = state.u64(field, len)?;
-        let mut at = 0;
-        while at < log.len() {
-            let count = log[at] as usize;
-            let end = (at + 1)
-                .checked_add(count)
-                .filter(|&e| count > 0 && e <= log.len());
-            let Some(end) = end else {
-                return Err(format!(
-                    "`{field}` holds a split of {count} parents where {} values are left",
-                    log.len() - at - 1
-                ));
-            };
-            let n = body.len();
-            let parents: Vec<u32> = log[at + 1..end]
-                .iter()
-                .map(|&k| u32::try_from(k).unwrap_or(u32::MAX))
-                .collect();
+        for parents in state.log(field, "parents")? {
+            let (n, count) = (body.len(), parents.len());
             let mut distinct = parents.clone();
             distinct.sort_unstable();
             distinct.dedup();
@@ -179,7 +162,6 @@ impl Splitting {
                 ));
             }
             self.split(body, &parents);
-            at = end;
         }
         Ok(())
     }
@@ -219,13 +201,7 @@ impl Adaptation<ParticleBody> for Splitting {
 
     /// Every split as its parent count then its parents, and the counters.
     fn save(&self, _body: &ParticleBody, state: &mut State) {
-        let log: Vec<u64> = self
-            .log
-            .iter()
-            .flat_map(|p| std::iter::once(p.len() as u64).chain(p.iter().map(|&k| u64::from(k))))
-            .collect();
-        state.put_u64("dual_horizon/split_log_len", vec![log.len() as u64]);
-        state.put_u64("dual_horizon/split_log", log);
+        state.put_log("dual_horizon/split_log", self.log.iter().map(Vec::as_slice));
         state.put_u64("dual_horizon/splits", vec![self.splits, self.split_parents]);
     }
 

@@ -167,9 +167,7 @@ impl<const D: usize> Adaptation<ElasticBody<D>> for LevelScheme<D> {
     }
 
     fn save(&self, _body: &ElasticBody<D>, state: &mut State) {
-        let log = self.grid.refinement_log();
-        state.put_u64("multigrid/refine_log_len", vec![log.len() as u64]);
-        state.put_u64("multigrid/refine_log", log);
+        state.put_log("multigrid/refine_log", self.grid.refinements());
         state.put_u64("multigrid/coarse_broken", vec![self.coarse_broken]);
     }
 
@@ -177,15 +175,14 @@ impl<const D: usize> Adaptation<ElasticBody<D>> for LevelScheme<D> {
     /// cells in the same order give the same nodes and bond layout); the body's columns and
     /// bond states are read after.
     fn restore(&mut self, body: &mut ElasticBody<D>, state: &State) -> Result<(), String> {
-        let len = state.u64("multigrid/refine_log_len", 1)?[0] as usize;
-        let events = self
-            .grid
-            .parse_log(state.u64("multigrid/refine_log", len)?)?;
+        let events = state.log("multigrid/refine_log", "cells")?;
+        self.grid.check_refinements(&events)?;
         let coarse_broken = state.u64("multigrid/coarse_broken", 1)?[0];
         if self.grid.refined_by_switch != 0 {
             return Err("refinements can be replayed on freshly built levels only".into());
         }
         for cells in events {
+            let cells: Vec<usize> = cells.iter().map(|&c| c as usize).collect();
             let growth = self.grid.replay(&cells, &body.discretization.families);
             self.add_cells(body, &growth, (0, 0.0));
         }
