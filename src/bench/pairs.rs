@@ -60,6 +60,13 @@ const S11_LARGE: &[&str] = &[
     "absorbing=false",
 ];
 
+/// The multi-adaptive pairs' accuracy: the tip-circle energy and both crack angles.
+const KW_MULTIGRID_ACCURACY: &[Accuracy] = &[
+    Accuracy::Relative("energy/circle/upper_tip"),
+    Accuracy::Angle("upper"),
+    Accuracy::Angle("lower"),
+];
+
 /// `--quick`'s multi-adaptive pair: the small variants to 45 µs (the cracks have started).
 const QUICK_KW_MULTIGRID: &[&str] = &["time.end=\"45 us\""];
 
@@ -94,11 +101,7 @@ pub const PAIRS: &[Pair] = &[
             with("small-hybrid-fast", QUICK_KW_MULTIGRID),
             with("small-fine", QUICK_KW_MULTIGRID),
         ],
-        accuracy: &[
-            Accuracy::Relative("energy/circle/upper_tip"),
-            Accuracy::Angle("upper"),
-            Accuracy::Angle("lower"),
-        ],
+        accuracy: KW_MULTIGRID_ACCURACY,
     },
     Pair {
         what: "Multi-adaptive Kalthoff–Winkler, standard on both levels, against uniform fine",
@@ -109,11 +112,7 @@ pub const PAIRS: &[Pair] = &[
             with("small", QUICK_KW_MULTIGRID),
             with("small-fine", QUICK_KW_MULTIGRID),
         ],
-        accuracy: &[
-            Accuracy::Relative("energy/circle/upper_tip"),
-            Accuracy::Angle("upper"),
-            Accuracy::Angle("lower"),
-        ],
+        accuracy: KW_MULTIGRID_ACCURACY,
     },
     Pair {
         what: "screw-3d: multi-grid against uniform fine",
