@@ -3,90 +3,73 @@
 
 use rayon::prelude::*;
 
+use super::kernel::{ROWS_PER_TASK, RowPass};
 use super::*;
+use crate::simd::Simd;
 
 impl DualBonds {
     /// The force pass (zeng2024 (9)–(13)), in two particle-parallel passes. First, per
-    /// particle k over its row H_k: break every intact bond whose stretch reaches k's s_c
-    /// (irreversible), sum θ_k (5) over the intact ones, then (the row still in cache) each
-    /// bond's force F_kj, which depends on k's state only, stored for the reactions; Σ_{H_k} F_kj
-    /// and W_k (4). Second, per particle, the reactions −Σ_{H'_k} F_jk and the split criteria.
-    /// Stretch and cosine are recomputed in the second loop over the row rather than stored,
-    /// so a bond costs about 50 bytes of memory traffic per step instead of 170 (the pass is
-    /// memory-bound). Returns the bonds broken now. Allocation-free.
+    /// particle k over its row H_k (`kernel`, on the lanes `Simd::selected` gives): break
+    /// every intact bond whose stretch reaches k's s_c (irreversible), sum θ_k (5) over the
+    /// intact ones, then (the row still in cache) each bond's force F_kj, which depends on k's
+    /// state only, stored for the reactions; Σ_{H_k} F_kj and W_k (4). Second, per particle, the
+    /// reactions −Σ_{H'_k} F_jk and the split criteria. Every lane count gives the same bits.
+    /// Returns the bonds broken now. Allocation-free.
     pub fn evaluate(
         &mut self,
         body: &Body,
         positions: &[[f64; 2]],
         out: &mut [ParticleTerms],
     ) -> u64 {
-        let (starts, ends, neighbors, lengths) =
-            (&self.starts, &self.ends, &self.neighbors, &self.lengths);
-        let (weight_theta, weight_distortion) = (&self.weight_theta, &self.weight_distortion);
-        let criteria = &self.criteria;
+        let simd = Simd::selected();
+        self.evaluate_with(body, positions, out, |rows| simd.run(rows))
+    }
+
+    /// `evaluate` with the direct bonds' loop on one lane (the scalar loop's form).
+    #[cfg(test)]
+    pub(super) fn evaluate_one_lane(
+        &mut self,
+        body: &Body,
+        positions: &[[f64; 2]],
+        out: &mut [ParticleTerms],
+    ) -> u64 {
+        use crate::simd::{LaneLoop, Portable};
+        self.evaluate_with(body, positions, out, |rows| rows.run::<Portable<1>>())
+    }
+
+    /// `evaluate` with `direct` running each task's rows of the first pass.
+    fn evaluate_with(
+        &mut self,
+        body: &Body,
+        positions: &[[f64; 2]],
+        out: &mut [ParticleTerms],
+        direct: impl Fn(RowPass) -> u64 + Sync,
+    ) -> u64 {
+        assert_eq!(out.len(), self.particle_count());
+        assert_eq!(positions.len(), body.reference.len());
         let intact = RowSlots::new(&mut self.intact);
-        let reaction_slot = &self.reaction_slot;
         // SAFETY of its writes: each live slot's entry belongs to that slot alone.
         let reactions = RowSlots::new(&mut self.reactions);
-        let (x, y) = (body.reference, positions);
-        let kinematics = |k: usize, j: usize, b: usize| bond_kinematics(x, y, lengths[b], k, j);
         let broken: u64 = out
-            .par_iter_mut()
+            .par_chunks_mut(ROWS_PER_TASK)
             .enumerate()
-            .map(|(k, t)| {
-                let c = &body.constants[k];
-                let row = starts[k]..ends[k];
-                let mut broken = 0;
-                let mut theta = 0.0;
-                for b in row.clone() {
-                    // SAFETY (both columns): slot b lies in row k alone (rows are disjoint,
-                    // `RowSlots`), and this task is the only one visiting row k.
-                    if unsafe { intact.read(b) } == 0 {
-                        continue;
-                    }
-                    let (_, _, stretch, cosine, _) = kinematics(k, neighbors[b] as usize, b);
-                    if stretch >= c.critical_stretch {
-                        unsafe { intact.write(b, 0) };
-                        broken += 1;
-                    } else {
-                        theta += c.dilatation_term(cosine, stretch, weight_theta[b]);
-                    }
-                }
-                let gated = criteria.get(k).is_some_and(|g| g.is_finite());
-                let (mut force, mut distortion, mut lost) = ([0.0; 2], 0.0, 0.0);
-                for b in row {
-                    let j = neighbors[b] as usize;
-                    if unsafe { intact.read(b) } == 0 {
-                        // Every pass, not only at the break: μ is a public column that
-                        // pre-cracks and restarts set directly.
-                        unsafe { reactions.write(reaction_slot[b] as usize, [0.0; 2]) };
-                        if gated {
-                            lost += body.volumes[j];
-                        }
-                        continue;
-                    }
-                    let (eta, inverse_l, stretch, cosine, inverse_l0) = kinematics(k, j, b);
-                    let scalar = c.bond_scalar(
-                        theta,
-                        cosine,
-                        stretch,
-                        inverse_l0,
-                        weight_theta[b],
-                        weight_distortion[b],
-                    ) * body.volumes[k]
-                        * inverse_l;
-                    let f = [scalar * eta[0], scalar * eta[1]];
-                    unsafe { reactions.write(reaction_slot[b] as usize, f) };
-                    force[0] += f[0];
-                    force[1] += f[1];
-                    distortion += c.distortion_energy(stretch, lengths[b], weight_distortion[b]);
-                }
-                t.dilatation = theta;
-                t.force = force;
-                t.energy_density = c.a * theta * theta + distortion;
-                // The row's part of the lost volume (15), finished by the reactions' pass.
-                t.damage = lost;
-                broken
+            .map(|(task, terms)| {
+                direct(RowPass {
+                    first: task * ROWS_PER_TASK,
+                    terms,
+                    body,
+                    positions: positions.as_flattened(),
+                    starts: &self.starts,
+                    ends: &self.ends,
+                    neighbors: &self.neighbors,
+                    lengths: &self.lengths,
+                    weight_theta: &self.weight_theta,
+                    weight_distortion: &self.weight_distortion,
+                    reaction_slot: &self.reaction_slot,
+                    criteria: &self.criteria,
+                    intact: &intact,
+                    reactions: &reactions,
+                })
             })
             .sum();
         let (reactions, intact, owner) = (&self.reactions, &self.intact, &self.owner);

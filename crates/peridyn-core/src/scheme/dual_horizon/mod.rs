@@ -22,6 +22,7 @@ use crate::model::osb::OsbHorizon;
 pub use crate::scene::BondWeights;
 
 mod forces;
+mod kernel;
 mod quadrature;
 
 /// Smallest weight factor ω/V_j a moment fit may produce; below it the particle falls back
@@ -75,12 +76,16 @@ impl<T: Copy> RowSlots<T> {
         }
     }
 
+    /// The slots `range` as a slice.
+    ///
     /// # Safety
-    /// Slot `b` lies in the row the calling task visits.
+    /// `range` is (part of) the row the calling task visits.
     #[inline(always)]
-    unsafe fn read(&self, b: usize) -> T {
-        assert!(b < self.len);
-        unsafe { self.column.add(b).read() }
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn slice_mut(&self, range: std::ops::Range<usize>) -> &mut [T] {
+        assert!(range.start <= range.end && range.end <= self.len);
+        // SAFETY: in bounds (checked above); no other task touches these slots.
+        unsafe { std::slice::from_raw_parts_mut(self.column.add(range.start), range.len()) }
     }
 
     /// # Safety
@@ -158,26 +163,6 @@ fn bond_length(reference: &[[f64; 2]], k: usize, j: usize) -> f64 {
     let (x, y) = (reference[k], reference[j]);
     let xi = [y[0] - x[0], y[1] - x[1]];
     (xi[0] * xi[0] + xi[1] * xi[1]).sqrt()
-}
-
-/// Bond k → j's deformed vector η, 1/|η|, stretch, cosine and 1/|ξ| (|ξ| = `l0`), with one
-/// division: the force pass evaluates every bond twice per step.
-#[inline(always)]
-fn bond_kinematics(
-    x: &[[f64; 2]],
-    y: &[[f64; 2]],
-    l0: f64,
-    k: usize,
-    j: usize,
-) -> ([f64; 2], f64, f64, f64, f64) {
-    let xi = [x[j][0] - x[k][0], x[j][1] - x[k][1]];
-    let eta = [y[j][0] - y[k][0], y[j][1] - y[k][1]];
-    let l = (eta[0] * eta[0] + eta[1] * eta[1]).sqrt();
-    let inverse = 1.0 / (l * l0);
-    let (inverse_l, inverse_l0) = (l0 * inverse, l * inverse);
-    let stretch = (l - l0) * inverse_l0;
-    let cosine = (xi[0] * eta[0] + xi[1] * eta[1]) * inverse;
-    (eta, inverse_l, stretch, cosine, inverse_l0)
 }
 
 /// The family of particle k among `candidates`: j ≠ k with |x_j − x_k| < δ_k, sorted.

@@ -1,0 +1,352 @@
+//! The direct bonds' loop of the force pass (zeng2024 (5), (9)–(13)) written once over the
+//! project's lanes (`crate::simd`): a particle's row H_k is taken N bonds at a time, the
+//! neighbours' positions gathered, and each bond's kinematics, break test, θ term, force and
+//! distortional energy computed lane by lane with the scalar code's IEEE operations in its
+//! order. The row sums (θ_k, Σ F_kj, the distortion energy, the lost volume) are then added
+//! lane after lane in bond order, so every lane count (1, 4 or 8) gives the bits of the one-bond
+//! loop: the results do not depend on the CPU. A broken bond's lane adds +0, which leaves a
+//! sum started at +0 unchanged (a sum of finite terms started at +0 is never −0).
+//!
+//! The bonds' columns are struct-of-arrays in row order (neighbour, μ, |ξ|, ω_θ, ω_b), the
+//! constants per particle (its own horizon δ_k). Stretch and cosine are computed again in the
+//! force loop rather than stored (the pass is bound by memory traffic at one bond's columns).
+
+use crate::model::osb::OsbHorizon;
+use crate::simd::{LaneLoop, Lanes};
+
+use super::{Body, ParticleTerms, RowSlots};
+
+/// Particles per task of the force pass.
+pub(super) const ROWS_PER_TASK: usize = 128;
+
+/// One task's particles `first..first + terms.len()` of the direct bonds' loop, for
+/// `Simd::run`: breaks, θ_k, the direct forces (stored at their reaction slots), the energy
+/// density and the row's part of the lost volume. Returns the bonds broken now.
+pub(super) struct RowPass<'a> {
+    pub first: usize,
+    pub terms: &'a mut [ParticleTerms],
+    pub body: &'a Body<'a>,
+    /// Deformed positions, two values per particle.
+    pub positions: &'a [f64],
+    pub starts: &'a [usize],
+    pub ends: &'a [usize],
+    pub neighbors: &'a [u32],
+    pub lengths: &'a [f64],
+    pub weight_theta: &'a [f64],
+    pub weight_distortion: &'a [f64],
+    pub reaction_slot: &'a [u32],
+    pub criteria: &'a [f64],
+    pub intact: &'a RowSlots<u8>,
+    pub reactions: &'a RowSlots<[f64; 2]>,
+}
+
+impl LaneLoop for RowPass<'_> {
+    type Output = u64;
+
+    #[inline(always)]
+    fn run<L: Lanes>(self) -> u64 {
+        let reference = self.body.reference.as_flattened();
+        let particles = self.body.reference.len();
+        assert_eq!(self.positions.len(), reference.len());
+        let mut broken = 0;
+        for (offset, t) in self.terms.iter_mut().enumerate() {
+            let k = self.first + offset;
+            let row = self.starts[k]..self.ends[k];
+            let neighbors = &self.neighbors[row.clone()];
+            // Every neighbour is a particle (checked once per row: the gathers do not check).
+            assert!(neighbors.iter().all(|&j| (j as usize) < particles));
+            let bonds = Row {
+                reference,
+                positions: self.positions,
+                x_k: self.body.reference[k],
+                y_k: [self.positions[2 * k], self.positions[2 * k + 1]],
+                neighbors,
+                lengths: &self.lengths[row.clone()],
+                weight_theta: &self.weight_theta[row.clone()],
+                weight_distortion: &self.weight_distortion[row.clone()],
+                constants: Constants::of(&self.body.constants[k]),
+                first: 0,
+                count: neighbors.len(),
+            };
+            // SAFETY: row k's slots belong to row k alone (rows are disjoint, `RowSlots`),
+            // and this task is the only one visiting row k.
+            let states = unsafe { self.intact.slice_mut(row.clone()) };
+            // The row's last bonds (fewer than N) as a padded block: the same lane loops
+            // on the same lanes, the padding masked like broken bonds.
+            let blocked = neighbors.len() / L::N * L::N;
+            let padded = Padded::of(&bonds, blocked, k as u32);
+            let tail = bonds.over(&padded, blocked);
+            let mut tail_states = [0; 8];
+            tail_states[..tail.count].copy_from_slice(&states[blocked..]);
+            let mut theta = 0.0;
+            // SAFETY (the gathers of both loops): the neighbours were checked above, the
+            // padding is particle k.
+            for at in (0..blocked).step_by(L::N) {
+                broken += unsafe { bonds.dilatation::<L>(at, states, &mut theta) };
+            }
+            if tail.count > 0 {
+                broken += unsafe { tail.dilatation::<L>(0, &mut tail_states, &mut theta) };
+                states[blocked..].copy_from_slice(&tail_states[..tail.count]);
+            }
+            let gated = self.criteria.get(k).is_some_and(|g| g.is_finite());
+            let mut sums = ForceSums {
+                volume: self.body.volumes[k],
+                theta,
+                lost: gated.then_some(0.0),
+                ..ForceSums::default()
+            };
+            let slots = &self.reaction_slot[row];
+            // SAFETY: the reaction slots of row k's bonds are written by this task alone (each
+            // slot's entry in the dual lists belongs to one bond).
+            let mut react =
+                |b: usize, f: [f64; 2]| unsafe { self.reactions.write(slots[b] as usize, f) };
+            let volumes = self.body.volumes;
+            for at in (0..blocked).step_by(L::N) {
+                unsafe { bonds.forces::<L>(at, states, volumes, &mut sums, &mut react) };
+            }
+            if tail.count > 0 {
+                unsafe { tail.forces::<L>(0, &tail_states, volumes, &mut sums, &mut react) };
+            }
+            t.dilatation = theta;
+            t.force = sums.force;
+            t.energy_density = bonds.constants.a * theta * theta + sums.distortion;
+            // The row's part of the lost volume (15), finished by the reactions' pass.
+            t.damage = sums.lost.unwrap_or(0.0);
+        }
+        broken
+    }
+}
+
+/// A particle's constants in the products the scalar formulas form first (the same bits).
+#[derive(Clone, Copy)]
+struct Constants {
+    a: f64,
+    critical_stretch: f64,
+    /// d δ (the θ term).
+    d_horizon: f64,
+    /// 2 δ (the bond scalar).
+    two_horizon: f64,
+    /// a d.
+    a_d: f64,
+    b: f64,
+    /// b δ (the distortional energy).
+    b_horizon: f64,
+}
+
+impl Constants {
+    fn of(c: &OsbHorizon) -> Constants {
+        Constants {
+            a: c.a,
+            critical_stretch: c.critical_stretch,
+            d_horizon: c.d * c.horizon,
+            two_horizon: 2.0 * c.horizon,
+            a_d: c.a * c.d,
+            b: c.b,
+            b_horizon: c.b * c.horizon,
+        }
+    }
+}
+
+/// What the force loop sums over a row, in bond order.
+#[derive(Default)]
+struct ForceSums {
+    /// V_k.
+    volume: f64,
+    /// θ_k of the row (read).
+    theta: f64,
+    force: [f64; 2],
+    /// Σ b δ s² |ξ| ω_b.
+    distortion: f64,
+    /// Σ V_j over the row's broken bonds, where the particle's damage is wanted.
+    lost: Option<f64>,
+}
+
+/// One particle's row: its bonds' columns and the positions they read.
+struct Row<'a> {
+    reference: &'a [f64],
+    positions: &'a [f64],
+    x_k: [f64; 2],
+    y_k: [f64; 2],
+    neighbors: &'a [u32],
+    lengths: &'a [f64],
+    weight_theta: &'a [f64],
+    weight_distortion: &'a [f64],
+    constants: Constants,
+    /// Where these columns start in the particle's row (the padded block: its first bond).
+    first: usize,
+    /// Bonds in these columns (the padded block: before the padding).
+    count: usize,
+}
+
+/// A row's bonds from `first` on (fewer than 8) in blocks of 8 with padding: the particle
+/// itself as the neighbour, |ξ| = 1, weights 0 and μ = 0, so the lane loops treat the padding
+/// as broken bonds (they add +0 and break nothing).
+struct Padded {
+    neighbors: [u32; 8],
+    lengths: [f64; 8],
+    weight_theta: [f64; 8],
+    weight_distortion: [f64; 8],
+    count: usize,
+}
+
+impl Padded {
+    fn of(row: &Row, first: usize, particle: u32) -> Padded {
+        fn pad<T: Copy, const M: usize>(column: &[T], first: usize, with: T) -> [T; M] {
+            let mut block = [with; M];
+            block[..column.len() - first].copy_from_slice(&column[first..]);
+            block
+        }
+        Padded {
+            neighbors: pad(row.neighbors, first, particle),
+            lengths: pad(row.lengths, first, 1.0),
+            weight_theta: pad(row.weight_theta, first, 0.0),
+            weight_distortion: pad(row.weight_distortion, first, 0.0),
+            count: row.count - first,
+        }
+    }
+}
+
+/// Bonds `at..at + N` of a row, as lanes.
+struct Kinematics<L> {
+    /// η = y_j − y_k.
+    eta: [L; 2],
+    /// 1/|η|.
+    inverse_l: L,
+    stretch: L,
+    /// ξ·η / (|ξ| |η|).
+    cosine: L,
+    /// 1/|ξ|.
+    inverse_l0: L,
+}
+
+impl Row<'_> {
+    /// The padded block `padded` of this row (its bonds from `first` on) as a row.
+    fn over<'b>(&self, padded: &'b Padded, first: usize) -> Row<'b>
+    where
+        Self: 'b,
+    {
+        Row {
+            neighbors: &padded.neighbors,
+            lengths: &padded.lengths,
+            weight_theta: &padded.weight_theta,
+            weight_distortion: &padded.weight_distortion,
+            first,
+            count: padded.count,
+            ..*self
+        }
+    }
+
+    /// Bonds `at..at + N`'s kinematics (gathers of both positions, one square root and one
+    /// division per bond).
+    ///
+    /// # Safety
+    /// The row's neighbours are particles of `reference` and `positions`.
+    #[inline(always)]
+    unsafe fn kinematics<L: Lanes>(&self, at: usize) -> Kinematics<L> {
+        let nodes = &self.neighbors[at..at + L::N];
+        // SAFETY: the caller guarantees the indices.
+        let (x_j, y_j) = unsafe {
+            (
+                L::gather2(self.reference, nodes),
+                L::gather2(self.positions, nodes),
+            )
+        };
+        let xi: [L; 2] = std::array::from_fn(|i| x_j[i] - L::splat(self.x_k[i]));
+        let eta: [L; 2] = std::array::from_fn(|i| y_j[i] - L::splat(self.y_k[i]));
+        let l = (eta[0] * eta[0] + eta[1] * eta[1]).sqrt();
+        let l0 = L::load(&self.lengths[at..]);
+        let inverse = L::splat(1.0) / (l * l0);
+        let (inverse_l, inverse_l0) = (l0 * inverse, l * inverse);
+        Kinematics {
+            eta,
+            inverse_l,
+            stretch: (l - l0) * inverse_l0,
+            cosine: (xi[0] * eta[0] + xi[1] * eta[1]) * inverse,
+            inverse_l0,
+        }
+    }
+
+    /// The first loop on bonds `at..at + N`: every intact bond whose stretch reaches s_c
+    /// breaks (irreversible, μ = 0 in `states`), the others add their θ term d δ Λ s ω_θ (5)
+    /// to `theta` in bond order. Returns the bonds broken now.
+    ///
+    /// # Safety
+    /// As `kinematics`.
+    #[inline(always)]
+    unsafe fn dilatation<L: Lanes>(&self, at: usize, states: &mut [u8], theta: &mut f64) -> u64 {
+        let c = &self.constants;
+        // SAFETY: as the caller's.
+        let k = unsafe { self.kinematics::<L>(at) };
+        let states = &mut states[at..at + L::N];
+        let intact = L::nonzero(states);
+        let keep = L::and(intact, k.stretch.lt(L::splat(c.critical_stretch)));
+        let (intact, kept) = (L::bits(intact), L::bits(keep));
+        let mut broken = 0;
+        if intact != kept {
+            for (l, state) in states.iter_mut().enumerate() {
+                if (intact & !kept) >> l & 1 == 1 {
+                    *state = 0;
+                    broken += 1;
+                }
+            }
+        }
+        let term = L::splat(c.d_horizon) * k.cosine * k.stretch * L::load(&self.weight_theta[at..]);
+        *theta = term.zero_unless(keep).fold(*theta, |sum, x| sum + x);
+        broken
+    }
+
+    /// The second loop on bonds `at..at + N`: each intact bond's force F_kj (9)–(13), which
+    /// depends on k's state only, handed to `react` (zero for a broken bond), and the row's
+    /// sums in bond order: Σ F_kj, the distortional energy (4) and, where it is wanted, the
+    /// lost volume Σ V_j of the broken bonds.
+    ///
+    /// # Safety
+    /// As `kinematics`.
+    #[inline(always)]
+    unsafe fn forces<L: Lanes>(
+        &self,
+        at: usize,
+        states: &[u8],
+        volumes: &[f64],
+        sums: &mut ForceSums,
+        react: &mut impl FnMut(usize, [f64; 2]),
+    ) {
+        let c = &self.constants;
+        // SAFETY: as the caller's.
+        let k = unsafe { self.kinematics::<L>(at) };
+        let states = &states[at..at + L::N];
+        let live = L::nonzero(states);
+        let (weight_theta, weight_distortion, l0) = (
+            L::load(&self.weight_theta[at..]),
+            L::load(&self.weight_distortion[at..]),
+            L::load(&self.lengths[at..]),
+        );
+        // OsbHorizon::bond_scalar · V_k / |η|, its products in its order.
+        let scalar = L::splat(c.two_horizon)
+            * (L::splat(c.a_d) * k.cosine * L::splat(sums.theta) * weight_theta * k.inverse_l0
+                + L::splat(c.b) * k.stretch * weight_distortion)
+            * L::splat(sums.volume)
+            * k.inverse_l;
+        let mut f = [[0.0; 8]; 2];
+        (scalar * k.eta[0]).zero_unless(live).store(&mut f[0]);
+        (scalar * k.eta[1]).zero_unless(live).store(&mut f[1]);
+        let energy = L::splat(c.b_horizon) * k.stretch * k.stretch * l0 * weight_distortion;
+        sums.distortion = energy
+            .zero_unless(live)
+            .fold(sums.distortion, |sum, x| sum + x);
+        let lanes = L::N.min(self.count - at);
+        for l in 0..lanes {
+            sums.force[0] += f[0][l];
+            sums.force[1] += f[1][l];
+            react(self.first + at + l, [f[0][l], f[1][l]]);
+        }
+        if let Some(lost) = &mut sums.lost {
+            let live = L::bits(live);
+            for l in 0..lanes {
+                if live >> l & 1 == 0 {
+                    *lost += volumes[self.neighbors[at + l] as usize];
+                }
+            }
+        }
+    }
+}
