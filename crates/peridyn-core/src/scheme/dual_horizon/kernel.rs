@@ -49,6 +49,7 @@ impl LaneLoop for RowPass<'_> {
         let particles = self.body.reference.len();
         assert_eq!(self.positions.len(), reference.len());
         let mut broken = 0;
+        let mut kept = KeptKinematics::default();
         for (offset, t) in self.terms.iter_mut().enumerate() {
             let k = self.first + offset;
             let row = self.starts[k]..self.ends[k];
@@ -79,13 +80,16 @@ impl LaneLoop for RowPass<'_> {
             let mut tail_states = [0; 8];
             tail_states[..tail.count].copy_from_slice(&states[blocked..]);
             let mut theta = 0.0;
+            // The first loop's kinematics kept for the second where the row fits.
+            let mut keep = (neighbors.len() + 8 <= KEPT).then_some(&mut kept);
             // SAFETY (the gathers of both loops): the neighbours were checked above, the
             // padding is particle k.
             for at in (0..blocked).step_by(L::N) {
-                broken += unsafe { bonds.dilatation::<L>(at, states, &mut theta) };
+                broken += unsafe { bonds.dilatation::<L>(at, states, &mut theta, &mut keep) };
             }
             if tail.count > 0 {
-                broken += unsafe { tail.dilatation::<L>(0, &mut tail_states, &mut theta) };
+                broken +=
+                    unsafe { tail.dilatation::<L>(0, &mut tail_states, &mut theta, &mut keep) };
                 states[blocked..].copy_from_slice(&tail_states[..tail.count]);
             }
             let gated = self.criteria.get(k).is_some_and(|g| g.is_finite());
@@ -101,11 +105,12 @@ impl LaneLoop for RowPass<'_> {
             let mut react =
                 |b: usize, f: [f64; 2]| unsafe { self.reactions.write(slots[b] as usize, f) };
             let volumes = self.body.volumes;
+            let kept = keep.as_deref();
             for at in (0..blocked).step_by(L::N) {
-                unsafe { bonds.forces::<L>(at, states, volumes, &mut sums, &mut react) };
+                unsafe { bonds.forces::<L>(at, states, volumes, kept, &mut sums, &mut react) };
             }
             if tail.count > 0 {
-                unsafe { tail.forces::<L>(0, &tail_states, volumes, &mut sums, &mut react) };
+                unsafe { tail.forces::<L>(0, &tail_states, volumes, kept, &mut sums, &mut react) };
             }
             t.dilatation = theta;
             t.force = sums.force;
@@ -114,6 +119,48 @@ impl LaneLoop for RowPass<'_> {
             t.damage = sums.lost.unwrap_or(0.0);
         }
         broken
+    }
+}
+
+/// Bonds per row (padding included) whose kinematics the first loop keeps for the second;
+/// a longer row's second loop computes them again.
+const KEPT: usize = 136;
+
+/// A row's kinematics in bond order: η (two columns), 1/|η|, stretch, cosine, 1/|ξ|.
+struct KeptKinematics {
+    columns: [[f64; KEPT]; 6],
+}
+
+impl Default for KeptKinematics {
+    fn default() -> KeptKinematics {
+        KeptKinematics {
+            columns: [[0.0; KEPT]; 6],
+        }
+    }
+}
+
+impl KeptKinematics {
+    #[inline(always)]
+    fn store<L: Lanes>(&mut self, at: usize, k: &Kinematics<L>) {
+        let [eta_x, eta_y, inverse_l, stretch, cosine, inverse_l0] = &mut self.columns;
+        k.eta[0].store(&mut eta_x[at..]);
+        k.eta[1].store(&mut eta_y[at..]);
+        k.inverse_l.store(&mut inverse_l[at..]);
+        k.stretch.store(&mut stretch[at..]);
+        k.cosine.store(&mut cosine[at..]);
+        k.inverse_l0.store(&mut inverse_l0[at..]);
+    }
+
+    #[inline(always)]
+    fn load<L: Lanes>(&self, at: usize) -> Kinematics<L> {
+        let [eta_x, eta_y, inverse_l, stretch, cosine, inverse_l0] = &self.columns;
+        Kinematics {
+            eta: [L::load(&eta_x[at..]), L::load(&eta_y[at..])],
+            inverse_l: L::load(&inverse_l[at..]),
+            stretch: L::load(&stretch[at..]),
+            cosine: L::load(&cosine[at..]),
+            inverse_l0: L::load(&inverse_l0[at..]),
+        }
     }
 }
 
@@ -273,10 +320,19 @@ impl Row<'_> {
     /// # Safety
     /// As `kinematics`.
     #[inline(always)]
-    unsafe fn dilatation<L: Lanes>(&self, at: usize, states: &mut [u8], theta: &mut f64) -> u64 {
+    unsafe fn dilatation<L: Lanes>(
+        &self,
+        at: usize,
+        states: &mut [u8],
+        theta: &mut f64,
+        keep: &mut Option<&mut KeptKinematics>,
+    ) -> u64 {
         let c = &self.constants;
         // SAFETY: as the caller's.
         let k = unsafe { self.kinematics::<L>(at) };
+        if let Some(kept) = keep {
+            kept.store(self.first + at, &k);
+        }
         let states = &mut states[at..at + L::N];
         let intact = L::nonzero(states);
         let keep = L::and(intact, k.stretch.lt(L::splat(c.critical_stretch)));
@@ -308,12 +364,16 @@ impl Row<'_> {
         at: usize,
         states: &[u8],
         volumes: &[f64],
+        kept: Option<&KeptKinematics>,
         sums: &mut ForceSums,
         react: &mut impl FnMut(usize, [f64; 2]),
     ) {
         let c = &self.constants;
-        // SAFETY: as the caller's.
-        let k = unsafe { self.kinematics::<L>(at) };
+        let k = match kept {
+            Some(kept) => kept.load(self.first + at),
+            // SAFETY: as the caller's.
+            None => unsafe { self.kinematics::<L>(at) },
+        };
         let states = &states[at..at + L::N];
         let live = L::nonzero(states);
         let (weight_theta, weight_distortion, l0) = (
