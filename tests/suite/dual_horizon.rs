@@ -1131,3 +1131,36 @@ fn the_strain_gate_changes_no_split() {
         assert!(gated.split_parents() > 0);
     }
 }
+
+/// The force pass on lanes gives the bits of the scalar loop it replaced, on every lane
+/// implementation this CPU runs: the adaptive Kalthoff–Winkler run at its own step (499 steps,
+/// particles splitting and bonds breaking) ends on the field hashes the one-bond-at-a-time loop
+/// gave (recorded on that code, commit 7898b5b).
+#[test]
+fn the_vector_force_pass_gives_the_scalar_loops_fields() {
+    let scalar = "positions 966bebb8fb00e364, damage e451f21c859dddf7, velocity 64141c0fe3bb8f5b, \
+                  level 28bd836240cb5c05";
+    for simd in peridyn::simd::Simd::supported() {
+        let out = crate::common::temp("dual_horizon", &format!("kw-{}.rrd", simd.name()));
+        let run = std::process::Command::new(env!("CARGO_BIN_EXE_peridyn"))
+            .args([
+                "record",
+                "kalthoff-winkler-dh",
+                "--variant",
+                "own-step",
+                "-q",
+                "-o",
+            ])
+            .arg(&out)
+            .env("PERIDYN_SIMD", simd.name())
+            .output()
+            .expect("run peridyn");
+        let stdout = String::from_utf8_lossy(&run.stdout);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        assert!(stdout.contains(scalar), "{}: {stdout}", simd.name());
+    }
+}

@@ -25,20 +25,8 @@ impl DualBonds {
         self.evaluate_with(body, positions, out, |rows| simd.run(rows))
     }
 
-    /// `evaluate` with the direct bonds' loop on one lane (the scalar loop's form).
-    #[cfg(test)]
-    pub(super) fn evaluate_one_lane(
-        &mut self,
-        body: &Body,
-        positions: &[[f64; 2]],
-        out: &mut [ParticleTerms],
-    ) -> u64 {
-        use crate::simd::{LaneLoop, Portable};
-        self.evaluate_with(body, positions, out, |rows| rows.run::<Portable<1>>())
-    }
-
     /// `evaluate` with `direct` running each task's rows of the first pass.
-    fn evaluate_with(
+    pub(super) fn evaluate_with(
         &mut self,
         body: &Body,
         positions: &[[f64; 2]],

@@ -53,7 +53,15 @@ impl LaneLoop for RowPass<'_> {
         for (offset, t) in self.terms.iter_mut().enumerate() {
             let k = self.first + offset;
             let row = self.starts[k]..self.ends[k];
-            let neighbors = &self.neighbors[row.clone()];
+            let count = row.len();
+            let blocked = count / L::N * L::N;
+            // The columns up to the end of the row's last block where they reach that far:
+            // the last block (fewer than N bonds) then reads its columns in place, the lanes
+            // past the row masked by its states (copied, zero past the row); at the columns'
+            // end it is copied into a padded block.
+            let reach = (row.start + count.div_ceil(L::N) * L::N).min(self.neighbors.len());
+            let columns = row.start..reach;
+            let neighbors = &self.neighbors[columns.clone()];
             // Every neighbour is a particle (checked once per row: the gathers do not check).
             assert!(neighbors.iter().all(|&j| (j as usize) < particles));
             let bonds = Row {
@@ -62,35 +70,41 @@ impl LaneLoop for RowPass<'_> {
                 x_k: self.body.reference[k],
                 y_k: [self.positions[2 * k], self.positions[2 * k + 1]],
                 neighbors,
-                lengths: &self.lengths[row.clone()],
-                weight_theta: &self.weight_theta[row.clone()],
-                weight_distortion: &self.weight_distortion[row.clone()],
+                lengths: &self.lengths[columns.clone()],
+                weight_theta: &self.weight_theta[columns.clone()],
+                weight_distortion: &self.weight_distortion[columns],
                 constants: Constants::of(&self.body.constants[k]),
                 first: 0,
-                count: neighbors.len(),
+                count,
             };
             // SAFETY: row k's slots belong to row k alone (rows are disjoint, `RowSlots`),
             // and this task is the only one visiting row k.
             let states = unsafe { self.intact.slice_mut(row.clone()) };
-            // The row's last bonds (fewer than N) as a padded block: the same lane loops
-            // on the same lanes, the padding masked like broken bonds.
-            let blocked = neighbors.len() / L::N * L::N;
-            let padded = Padded::of(&bonds, blocked, k as u32);
-            let tail = bonds.over(&padded, blocked);
+            let padded;
+            let (tail, tail_at) = if reach - row.start >= blocked + L::N || count == blocked {
+                (&bonds, blocked)
+            } else {
+                padded = Padded::of(&bonds, blocked, k as u32);
+                (&bonds.over(&padded, blocked), 0)
+            };
             let mut tail_states = [0; 8];
-            tail_states[..tail.count].copy_from_slice(&states[blocked..]);
+            for (tail, state) in tail_states.iter_mut().zip(&states[blocked..]) {
+                *tail = *state;
+            }
+            let tail_states = &mut tail_states[..L::N];
             let mut theta = 0.0;
             // The first loop's kinematics kept for the second where the row fits.
-            let mut keep = (neighbors.len() + 8 <= KEPT).then_some(&mut kept);
+            let mut keep = (count + 8 <= KEPT).then_some(&mut kept);
             // SAFETY (the gathers of both loops): the neighbours were checked above, the
             // padding is particle k.
             for at in (0..blocked).step_by(L::N) {
+                let states = &mut states[at..at + L::N];
                 broken += unsafe { bonds.dilatation::<L>(at, states, &mut theta, &mut keep) };
             }
-            if tail.count > 0 {
+            if count > blocked {
                 broken +=
-                    unsafe { tail.dilatation::<L>(0, &mut tail_states, &mut theta, &mut keep) };
-                states[blocked..].copy_from_slice(&tail_states[..tail.count]);
+                    unsafe { tail.dilatation::<L>(tail_at, tail_states, &mut theta, &mut keep) };
+                states[blocked..].copy_from_slice(&tail_states[..count - blocked]);
             }
             let gated = self.criteria.get(k).is_some_and(|g| g.is_finite());
             let mut sums = ForceSums {
@@ -107,10 +121,12 @@ impl LaneLoop for RowPass<'_> {
             let volumes = self.body.volumes;
             let kept = keep.as_deref();
             for at in (0..blocked).step_by(L::N) {
+                let states = &states[at..at + L::N];
                 unsafe { bonds.forces::<L>(at, states, volumes, kept, &mut sums, &mut react) };
             }
-            if tail.count > 0 {
-                unsafe { tail.forces::<L>(0, &tail_states, volumes, kept, &mut sums, &mut react) };
+            if count > blocked {
+                let states = &*tail_states;
+                unsafe { tail.forces::<L>(tail_at, states, volumes, kept, &mut sums, &mut react) };
             }
             t.dilatation = theta;
             t.force = sums.force;
@@ -238,16 +254,18 @@ struct Padded {
 
 impl Padded {
     fn of(row: &Row, first: usize, particle: u32) -> Padded {
-        fn pad<T: Copy, const M: usize>(column: &[T], first: usize, with: T) -> [T; M] {
-            let mut block = [with; M];
-            block[..column.len() - first].copy_from_slice(&column[first..]);
+        let pad = |column: &[f64], with: f64| {
+            let mut block = [with; 8];
+            block[..row.count - first].copy_from_slice(&column[first..row.count]);
             block
-        }
+        };
+        let mut neighbors = [particle; 8];
+        neighbors[..row.count - first].copy_from_slice(&row.neighbors[first..row.count]);
         Padded {
-            neighbors: pad(row.neighbors, first, particle),
-            lengths: pad(row.lengths, first, 1.0),
-            weight_theta: pad(row.weight_theta, first, 0.0),
-            weight_distortion: pad(row.weight_distortion, first, 0.0),
+            neighbors,
+            lengths: pad(row.lengths, 1.0),
+            weight_theta: pad(row.weight_theta, 0.0),
+            weight_distortion: pad(row.weight_distortion, 0.0),
             count: row.count - first,
         }
     }
@@ -314,7 +332,7 @@ impl Row<'_> {
     }
 
     /// The first loop on bonds `at..at + N`: every intact bond whose stretch reaches s_c
-    /// breaks (irreversible, μ = 0 in `states`), the others add their θ term d δ Λ s ω_θ (5)
+    /// breaks (irreversible, μ = 0 in `states`, the block's N states), the others add their θ term d δ Λ s ω_θ (5)
     /// to `theta` in bond order. Returns the bonds broken now.
     ///
     /// # Safety
@@ -333,7 +351,6 @@ impl Row<'_> {
         if let Some(kept) = keep {
             kept.store(self.first + at, &k);
         }
-        let states = &mut states[at..at + L::N];
         let intact = L::nonzero(states);
         let keep = L::and(intact, k.stretch.lt(L::splat(c.critical_stretch)));
         let (intact, kept) = (L::bits(intact), L::bits(keep));
@@ -374,7 +391,6 @@ impl Row<'_> {
             // SAFETY: as the caller's.
             None => unsafe { self.kinematics::<L>(at) },
         };
-        let states = &states[at..at + L::N];
         let live = L::nonzero(states);
         let (weight_theta, weight_distortion, l0) = (
             L::load(&self.weight_theta[at..]),
@@ -407,6 +423,117 @@ impl Row<'_> {
                     *lost += volumes[self.neighbors[at + l] as usize];
                 }
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{BondWeights, DualBonds};
+    use super::*;
+    use crate::discretization::buckets::Buckets;
+    use crate::model::osb::OsbMaterial;
+    use crate::model::pmb::Plane;
+    use crate::simd::{Portable, Simd};
+
+    /// The force pass on every lane implementation this CPU runs gives the one-bond loop's
+    /// bits: forces, θ, energy densities, damage, strains, bond states and reactions, over two
+    /// passes (bonds broken in the first are skipped in the second). Two horizons meet
+    /// (δ = 3.015 and 7.3 spacings: rows of 28 and of about 165 bonds, longer than the rows
+    /// whose kinematics are kept), every row length mod 8 occurs, a third of the particles
+    /// cannot split and the rest have their damage and strains computed.
+    #[test]
+    fn every_lane_count_gives_the_one_bond_loops_bits() {
+        let material = OsbMaterial {
+            youngs_modulus: 1.0,
+            poisson_ratio: 0.25,
+            plane: Plane::Stress,
+            thickness: 1.0,
+            // s_c ≈ 0.009 at δ = 3.015, 0.006 at 7.3: the perturbation breaks some bonds.
+            fracture_energy: Some(2e-4),
+        };
+        let n = 26;
+        let x: Vec<[f64; 2]> = (0..n * n)
+            .map(|k| [(k % n) as f64, (k / n) as f64])
+            .collect();
+        let volumes = vec![1.0; x.len()];
+        let constants: Vec<_> = x
+            .iter()
+            .map(|p| material.at(if p[0] < 13.0 { 3.015 } else { 7.3 }))
+            .collect();
+        let body = Body {
+            reference: &x,
+            volumes: &volumes,
+            constants: &constants,
+            thickness: 1.0,
+        };
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut noise = move || {
+            seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let positions: Vec<[f64; 2]> = x
+            .iter()
+            .map(|p| [p[0] * 1.004 + 0.03 * noise(), p[1] + 0.03 * noise()])
+            .collect();
+        let mut bonds = DualBonds::build(&body, &Buckets::new(&x, 7.4, 0.0), BondWeights::Volume);
+        bonds.criteria = (0..x.len())
+            .map(|k| if k % 3 == 0 { f64::INFINITY } else { 0.0 })
+            .collect();
+        let lengths: std::collections::BTreeSet<usize> =
+            (0..x.len()).map(|k| bonds.range(k).len() % 8).collect();
+        assert_eq!(lengths.len(), 8, "row lengths mod 8: {lengths:?}");
+        assert!((0..x.len()).any(|k| bonds.range(k).len() + 8 > KEPT));
+        let passes = |bonds: &mut DualBonds, simd: Option<Simd>| {
+            let mut out = Vec::new();
+            for _ in 0..2 {
+                let mut terms = vec![ParticleTerms::default(); x.len()];
+                let broken =
+                    bonds.evaluate_with(&body, &positions, &mut terms, |rows| match simd {
+                        Some(simd) => simd.run(rows),
+                        None => rows.run::<Portable<1>>(),
+                    });
+                out.push(broken.to_string());
+                out.extend(terms.iter().map(|t| {
+                    let values = [t.force[0], t.force[1], t.dilatation, t.energy_density];
+                    let more = [t.damage, t.strains[0], t.strains[1]];
+                    format!(
+                        "{:x?}",
+                        values
+                            .iter()
+                            .chain(&more)
+                            .map(|v| v.to_bits())
+                            .collect::<Vec<_>>()
+                    )
+                }));
+            }
+            out.push(format!("{:?}", bonds.intact));
+            out.push(format!(
+                "{:x?}",
+                bonds
+                    .reactions
+                    .iter()
+                    .map(|f| f.map(f64::to_bits))
+                    .collect::<Vec<_>>()
+            ));
+            out
+        };
+        let one_lane = passes(&mut bonds.clone(), None);
+        let broken: u64 = one_lane[0].parse().unwrap();
+        let total = bonds.bond_count() as u64;
+        assert!(
+            broken > total / 50 && broken < total / 2,
+            "{broken} of {total} broke"
+        );
+        for simd in Simd::supported() {
+            let lanes = passes(&mut bonds.clone(), Some(simd));
+            let first = lanes.iter().zip(&one_lane).position(|(a, b)| a != b);
+            assert_eq!(
+                first,
+                None,
+                "{}: first difference at entry {first:?}",
+                simd.name()
+            );
         }
     }
 }
