@@ -411,10 +411,10 @@ impl Row<'_> {
             .zero_unless(live)
             .fold(sums.distortion, |sum, x| sum + x);
         let lanes = L::N.min(self.count - at);
-        for l in 0..lanes {
-            sums.force[0] += f[0][l];
-            sums.force[1] += f[1][l];
-            react(self.first + at + l, [f[0][l], f[1][l]]);
+        for (l, (&x, &y)) in f[0][..lanes].iter().zip(&f[1][..lanes]).enumerate() {
+            sums.force[0] += x;
+            sums.force[1] += y;
+            react(self.first + at + l, [x, y]);
         }
         if let Some(lost) = &mut sums.lost {
             let live = L::bits(live);
