@@ -129,6 +129,9 @@ enum Command {
         /// With --pairs: alternations per pair (default 2, or 1 with --quick).
         #[arg(long)]
         rounds: Option<usize>,
+        /// With --pairs: only the pairs of this preset (re-measure what a change touched).
+        #[arg(long, value_name = "PRESET")]
+        only: Option<String>,
     },
 }
 
@@ -323,6 +326,7 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
             pairs,
             quick,
             rounds,
+            only,
         } => cli::bench(&BenchOptions {
             steps,
             variant,
@@ -331,6 +335,7 @@ fn execute(command: Command) -> Result<ExitCode, Failure> {
             pairs,
             quick,
             rounds,
+            only,
         }),
     }
 }

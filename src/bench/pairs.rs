@@ -459,10 +459,15 @@ fn row(pair: &Pair, sides: &[Side; 2], runs: &[Vec<Run>; 2]) -> String {
     )
 }
 
-/// Runs every pair (`quick`: the small variants), `rounds` alternations each, and returns the
+/// Runs `pairs` (`quick`: the small variants), `rounds` alternations each, and returns the
 /// Markdown table; `progress` is told each run as it starts. A pair that fails to run gets a
 /// row saying why, and the others still run.
-pub fn report(quick: bool, rounds: usize, progress: &mut dyn FnMut(&str)) -> PairsReport {
+pub fn report(
+    pairs: &[&Pair],
+    quick: bool,
+    rounds: usize,
+    progress: &mut dyn FnMut(&str),
+) -> PairsReport {
     let scratch = std::env::temp_dir().join(format!("peridyn-pairs-{}.rrd", std::process::id()));
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let mut table = format!(
@@ -484,7 +489,7 @@ pub fn report(quick: bool, rounds: usize, progress: &mut dyn FnMut(&str)) -> Pai
         if rounds == 1 { "" } else { "s" },
     );
     let mut failures = 0;
-    for pair in PAIRS {
+    for &pair in pairs {
         let sides = if quick {
             pair.quick
         } else {

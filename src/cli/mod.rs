@@ -175,6 +175,8 @@ pub struct BenchOptions {
     pub quick: bool,
     /// Alternations per pair (default 2; 1 with `quick`).
     pub rounds: Option<usize>,
+    /// Only the pairs of this preset.
+    pub only: Option<String>,
 }
 
 /// `peridyn bench`: throughput, WLS against standard, hybrid against standard.
@@ -186,14 +188,27 @@ pub fn bench(options: &BenchOptions) -> Result<ExitCode, Failure> {
                 "--rounds: give at least 1 alternation per pair".to_string(),
             ));
         }
+        let pairs: Vec<_> = bench::pairs::PAIRS
+            .iter()
+            .filter(|p| options.only.as_ref().is_none_or(|only| p.preset == only))
+            .collect();
+        if pairs.is_empty() {
+            let mut presets: Vec<_> = bench::pairs::PAIRS.iter().map(|p| p.preset).collect();
+            presets.dedup();
+            return Err(Failure::BadInput(format!(
+                "--only: no speed pair runs preset {:?}; the pairs' presets are {}",
+                options.only.as_deref().unwrap_or_default(),
+                presets.join(", ")
+            )));
+        }
         let mut progress = |label: &str| eprintln!("running {label}");
-        let report = bench::pairs::report(options.quick, rounds, &mut progress);
+        let report = bench::pairs::report(&pairs, options.quick, rounds, &mut progress);
         println!("{}", report.table);
         if report.failures > 0 {
             return Err(Failure::Runtime(format!(
                 "{} of {} pairs failed to run (their rows say why)",
                 report.failures,
-                bench::pairs::PAIRS.len()
+                pairs.len()
             )));
         }
         return Ok(ExitCode::SUCCESS);

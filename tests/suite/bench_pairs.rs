@@ -35,3 +35,38 @@ fn quick_pairs_run_end_to_end_and_report_every_figure() {
         );
     }
 }
+
+/// `--only PRESET` runs that preset's pairs alone; a preset with no pair is refused with the
+/// list of the pairs' presets.
+#[test]
+fn only_runs_one_presets_pairs_and_refuses_an_unknown_preset() {
+    let out = peridyn(&[
+        "bench",
+        "--pairs",
+        "--quick",
+        "--only",
+        "kalthoff-winkler-dh",
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("| ") && l.contains("`)"))
+        .collect();
+    assert_eq!(rows.len(), 1, "{stdout}");
+    assert!(rows[0].contains("(`kalthoff-winkler-dh`)"), "{stdout}");
+
+    let out = peridyn(&["bench", "--pairs", "--only", "no-such-preset"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("--only")
+            && stderr.contains("no-such-preset")
+            && stderr.contains("screw-3d"),
+        "{stderr}"
+    );
+}
