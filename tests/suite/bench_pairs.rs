@@ -7,19 +7,27 @@ use peridyn::bench::pairs::PAIRS;
 
 use crate::common::peridyn;
 
-#[test]
-fn quick_pairs_run_end_to_end_and_report_every_figure() {
-    let out = peridyn(&["bench", "--pairs", "--quick"]);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}\n{stdout}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let rows: Vec<&str> = stdout
+/// What a successful `peridyn` run with `args` printed.
+fn table(args: &[&str]) -> String {
+    let out = peridyn(args);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}\n{stdout}");
+    stdout
+}
+
+/// The table's rows of pairs (each names its preset as "(`preset`)").
+fn pair_rows(stdout: &str) -> Vec<&str> {
+    stdout
         .lines()
         .filter(|l| l.starts_with("| ") && l.contains("`)"))
-        .collect();
+        .collect()
+}
+
+#[test]
+fn quick_pairs_run_end_to_end_and_report_every_figure() {
+    let stdout = table(&["bench", "--pairs", "--quick"]);
+    let rows = pair_rows(&stdout);
     assert_eq!(rows.len(), PAIRS.len(), "one row per pair:\n{stdout}");
     for (row, pair) in rows.iter().zip(PAIRS) {
         assert!(row.contains(pair.preset), "{row}");
@@ -40,23 +48,14 @@ fn quick_pairs_run_end_to_end_and_report_every_figure() {
 /// list of the pairs' presets.
 #[test]
 fn only_runs_one_presets_pairs_and_refuses_an_unknown_preset() {
-    let out = peridyn(&[
+    let stdout = table(&[
         "bench",
         "--pairs",
         "--quick",
         "--only",
         "kalthoff-winkler-dh",
     ]);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let rows: Vec<&str> = stdout
-        .lines()
-        .filter(|l| l.starts_with("| ") && l.contains("`)"))
-        .collect();
+    let rows = pair_rows(&stdout);
     assert_eq!(rows.len(), 1, "{stdout}");
     assert!(rows[0].contains("(`kalthoff-winkler-dh`)"), "{stdout}");
 
