@@ -12,6 +12,7 @@
 use std::f64::consts::PI;
 
 use super::pmb::Plane;
+use crate::simd::Lanes;
 
 /// An isotropic elastic, brittle OSB material in 2D, as a preset gives it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -94,34 +95,36 @@ impl OsbMaterial {
 
 impl OsbHorizon {
     /// The scalar of the bond force (zeng2024 (3)–(5), seed-002 §1 "explicit bond force"):
-    /// t_kj = 2δ (a d Λ θ ω_θ / |ξ| + b s ω_b) per unit of V_k, along the deformed bond.
-    /// `weight_theta`, `weight_distortion` are the bond's quadrature weights (V_j, or the
-    /// moment-matched weights of `scheme::dual_horizon`); `inverse_length` is 1/|ξ|.
+    /// t_kj = 2δ (a d Λ θ ω_θ / |ξ| + b s ω_b) per unit of V_k, along the deformed bond, for
+    /// the bonds in `L`'s lanes (the constants' products first, then left to right: one lane
+    /// gives the scalar expression's bits). `weight_theta`, `weight_distortion` are the bond's
+    /// quadrature weights (V_j, or the moment-matched weights of `scheme::dual_horizon`);
+    /// `inverse_length` is 1/|ξ|.
     #[inline(always)]
-    pub fn bond_scalar(
+    pub fn bond_scalar<L: Lanes>(
         &self,
-        dilatation: f64,
-        cosine: f64,
-        stretch: f64,
-        inverse_length: f64,
-        weight_theta: f64,
-        weight_distortion: f64,
-    ) -> f64 {
-        2.0 * self.horizon
-            * (self.a * self.d * cosine * dilatation * weight_theta * inverse_length
-                + self.b * stretch * weight_distortion)
+        dilatation: L,
+        cosine: L,
+        stretch: L,
+        inverse_length: L,
+        weight_theta: L,
+        weight_distortion: L,
+    ) -> L {
+        L::splat(2.0 * self.horizon)
+            * (L::splat(self.a * self.d) * cosine * dilatation * weight_theta * inverse_length
+                + L::splat(self.b) * stretch * weight_distortion)
     }
 
-    /// The bond's contribution to θ_k (5): d δ Λ s ω_θ.
+    /// The bonds' contributions to θ_k (5): d δ Λ s ω_θ.
     #[inline(always)]
-    pub fn dilatation_term(&self, cosine: f64, stretch: f64, weight_theta: f64) -> f64 {
-        self.d * self.horizon * cosine * stretch * weight_theta
+    pub fn dilatation_term<L: Lanes>(&self, cosine: L, stretch: L, weight_theta: L) -> L {
+        L::splat(self.d * self.horizon) * cosine * stretch * weight_theta
     }
 
-    /// The bond's distortional energy (4): b δ s² |ξ| ω_b.
+    /// The bonds' distortional energies (4): b δ s² |ξ| ω_b.
     #[inline(always)]
-    pub fn distortion_energy(&self, stretch: f64, length: f64, weight_distortion: f64) -> f64 {
-        self.b * self.horizon * stretch * stretch * length * weight_distortion
+    pub fn distortion_energy<L: Lanes>(&self, stretch: L, length: L, weight_distortion: L) -> L {
+        L::splat(self.b * self.horizon) * stretch * stretch * length * weight_distortion
     }
 }
 

@@ -8,8 +8,9 @@
 //! sum started at +0 unchanged (a sum of finite terms started at +0 is never −0).
 //!
 //! The bonds' columns are struct-of-arrays in row order (neighbour, μ, |ξ|, ω_θ, ω_b), the
-//! constants per particle (its own horizon δ_k). Stretch and cosine are computed again in the
-//! force loop rather than stored (the pass is bound by memory traffic at one bond's columns).
+//! constants per particle (its own horizon δ_k; the bond formulas are `OsbHorizon`'s). The
+//! first loop's kinematics are kept on the stack for the second where a row has at most 128
+//! bonds; a longer row's second loop computes them again.
 
 use crate::model::osb::OsbHorizon;
 use crate::simd::{LaneLoop, Lanes};
@@ -73,7 +74,7 @@ impl LaneLoop for RowPass<'_> {
                 lengths: &self.lengths[columns.clone()],
                 weight_theta: &self.weight_theta[columns.clone()],
                 weight_distortion: &self.weight_distortion[columns],
-                constants: Constants::of(&self.body.constants[k]),
+                constants: &self.body.constants[k],
                 first: 0,
                 count,
             };
@@ -180,36 +181,6 @@ impl KeptKinematics {
     }
 }
 
-/// A particle's constants in the products the scalar formulas form first (the same bits).
-#[derive(Clone, Copy)]
-struct Constants {
-    a: f64,
-    critical_stretch: f64,
-    /// d δ (the θ term).
-    d_horizon: f64,
-    /// 2 δ (the bond scalar).
-    two_horizon: f64,
-    /// a d.
-    a_d: f64,
-    b: f64,
-    /// b δ (the distortional energy).
-    b_horizon: f64,
-}
-
-impl Constants {
-    fn of(c: &OsbHorizon) -> Constants {
-        Constants {
-            a: c.a,
-            critical_stretch: c.critical_stretch,
-            d_horizon: c.d * c.horizon,
-            two_horizon: 2.0 * c.horizon,
-            a_d: c.a * c.d,
-            b: c.b,
-            b_horizon: c.b * c.horizon,
-        }
-    }
-}
-
 /// What the force loop sums over a row, in bond order.
 #[derive(Default)]
 struct ForceSums {
@@ -234,7 +205,7 @@ struct Row<'a> {
     lengths: &'a [f64],
     weight_theta: &'a [f64],
     weight_distortion: &'a [f64],
-    constants: Constants,
+    constants: &'a OsbHorizon,
     /// Where these columns start in the particle's row (the padded block: its first bond).
     first: usize,
     /// Bonds in these columns (the padded block: before the padding).
@@ -363,7 +334,7 @@ impl Row<'_> {
                 }
             }
         }
-        let term = L::splat(c.d_horizon) * k.cosine * k.stretch * L::load(&self.weight_theta[at..]);
+        let term = c.dilatation_term(k.cosine, k.stretch, L::load(&self.weight_theta[at..]));
         *theta = term.zero_unless(keep).fold(*theta, |sum, x| sum + x);
         broken
     }
@@ -397,16 +368,19 @@ impl Row<'_> {
             L::load(&self.weight_distortion[at..]),
             L::load(&self.lengths[at..]),
         );
-        // OsbHorizon::bond_scalar · V_k / |η|, its products in its order.
-        let scalar = L::splat(c.two_horizon)
-            * (L::splat(c.a_d) * k.cosine * L::splat(sums.theta) * weight_theta * k.inverse_l0
-                + L::splat(c.b) * k.stretch * weight_distortion)
-            * L::splat(sums.volume)
+        let scalar = c.bond_scalar(
+            L::splat(sums.theta),
+            k.cosine,
+            k.stretch,
+            k.inverse_l0,
+            weight_theta,
+            weight_distortion,
+        ) * L::splat(sums.volume)
             * k.inverse_l;
         let mut f = [[0.0; 8]; 2];
         (scalar * k.eta[0]).zero_unless(live).store(&mut f[0]);
         (scalar * k.eta[1]).zero_unless(live).store(&mut f[1]);
-        let energy = L::splat(c.b_horizon) * k.stretch * k.stretch * l0 * weight_distortion;
+        let energy = c.distortion_energy(k.stretch, l0, weight_distortion);
         sums.distortion = energy
             .zero_unless(live)
             .fold(sums.distortion, |sum, x| sum + x);
