@@ -194,6 +194,7 @@ pub fn bench(options: &BenchOptions) -> Result<ExitCode, Failure> {
             .collect();
         if pairs.is_empty() {
             let mut presets: Vec<_> = bench::pairs::PAIRS.iter().map(|p| p.preset).collect();
+            presets.sort_unstable();
             presets.dedup();
             return Err(Failure::BadInput(format!(
                 "--only: no speed pair runs preset {:?}; the pairs' presets are {}",
